@@ -1,0 +1,39 @@
+"""Benchmarks: `garment bench NAME` runs one and prints a table, or JSON with --json.
+
+Each benchmark is a function (resolutions, steps, quadrature) -> list of case dicts, one
+per control-net resolution, plus the columns to print. The scene files in assets/scenes/
+are the single source of each setup; benchmarks only override resolution and length.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from . import cloth, plate, wrinkle
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    name: str
+    description: str
+    run: Callable[..., list[dict]]
+    resolutions: tuple[int, ...]
+    columns: tuple[str, ...]
+
+
+BENCHMARKS = {
+    b.name: b
+    for b in (
+        Benchmark("plate", "simply supported plate, max deflection vs analytic (Navier)",
+                  plate.run, (8, 16, 32, 64), plate.COLUMNS),
+        Benchmark("wrinkle", "stretched sheet wrinkling, max out-of-plane deflection (ref ~3.45 mm)",
+                  wrinkle.run, (10, 20, 30), wrinkle.COLUMNS),
+        Benchmark("hanging", "upright hanging cloth (Kim 2020), cost per step",
+                  cloth.runner("hanging"), (75, 100, 125), cloth.COLUMNS),
+        Benchmark("drape", "drape test (Kim 2020), cost per step",
+                  cloth.runner("drape"), (75, 100, 125), cloth.COLUMNS),
+        Benchmark("shear", "shear test (Kim 2020), cost per step",
+                  cloth.runner("shear"), (75, 100, 125), cloth.COLUMNS),
+    )
+}

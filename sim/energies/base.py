@@ -1,0 +1,35 @@
+"""The one interface every energy offers (value, gradient, Hessian), as in IPC Toolkit.
+
+Positions C are (n_cp, 3) arrays of all control points in metres. Gradients are added
+into an (n_cp, 3) array (pinned points included, so reaction forces can be read);
+Hessians are added into the `data` array of the shared lower-triangular block pattern
+(sim/assembly.py), restricted to free control points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..assembly import BlockPattern
+
+
+class Energy:
+    #: True when the Hessian does not depend on C (it is then assembled once per pattern).
+    constant_hessian: bool = False
+
+    def stencils(self) -> list[np.ndarray]:
+        """Control-point stencils (Q, K) whose pairs the Hessian pattern must hold."""
+        return []
+
+    def bind(self, pattern: BlockPattern) -> None:
+        """Precompute whatever maps this energy needs onto `pattern`."""
+
+    def value(self, C: np.ndarray) -> float:
+        raise NotImplementedError
+
+    def add_gradient(self, C: np.ndarray, out: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def add_hessian(self, C: np.ndarray, data: np.ndarray, project: bool = True) -> None:
+        """Add the (PSD-projected when `project`) Hessian into pattern data."""
+        raise NotImplementedError

@@ -1,0 +1,55 @@
+"""The incremental potential: a sum of energies over one fixed Hessian pattern.
+
+Constant Hessians (inertia, bending, loads) are assembled once into `const_data`; each
+Newton iteration copies them and lets the state-dependent energies add their blocks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .assembly import BlockPattern
+from .energies.base import Energy
+from .linsolve import CholeskySolver
+
+
+class IncrementalPotential:
+    """energies: the terms; free: (n_cp,) bool mask of unknown control points."""
+
+    def __init__(self, energies: list[Energy], free_mask: np.ndarray):
+        self.energies = energies
+        self.n_cp = free_mask.shape[0]
+        self.free_points = np.flatnonzero(free_mask)
+        free = -np.ones(self.n_cp, np.int64)
+        free[self.free_points] = np.arange(self.free_points.size)
+        self.pattern = BlockPattern.from_stencils(free, [s for e in energies for s in e.stencils()])
+        for e in energies:
+            e.bind(self.pattern)
+        self.const_data = np.zeros(self.pattern.nnz)
+        for e in energies:
+            if e.constant_hessian:
+                e.add_hessian(None, self.const_data)
+        self.data = self.const_data.copy()
+        self.matrix = self.pattern.matrix(self.data)
+        self.solver = CholeskySolver(self.matrix)
+
+    def value(self, C: np.ndarray) -> float:
+        return sum(e.value(C) for e in self.energies)
+
+    def gradient(self, C: np.ndarray) -> np.ndarray:
+        """(n_cp, 3) gradient, pinned points included."""
+        g = np.zeros((self.n_cp, 3))
+        for e in self.energies:
+            e.add_gradient(C, g)
+        return g
+
+    def assemble(self, C: np.ndarray, project: bool = True) -> None:
+        """Write the Hessian at C (free DOFs, lower triangle) into `self.matrix`."""
+        self.data[:] = self.const_data
+        for e in self.energies:
+            if not e.constant_hessian:
+                e.add_hessian(C, self.data, project)
+
+    def full_hessian(self):
+        """The assembled symmetric matrix (both triangles), for tests and diagnostics."""
+        return self.pattern.full(self.data)

@@ -1,0 +1,260 @@
+"""The time loop: model (what does not change) + state (what does), stepped by Newton.
+
+Model: patches, quadrature tables, energies and the Hessian pattern, all built once.
+State: control points C (n_cp, 3) in metres, velocities V (n_cp, 3) in m/s, time t in s.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+from typing import Callable, Iterable
+
+import numpy as np
+import scipy.sparse as sp
+
+from garment.materials import Material
+from garment.model import Patch
+
+from . import quadrature
+from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
+from .energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
+from .newton import NewtonOptions, minimize
+from .pins import PinGroup, select
+from .potential import IncrementalPotential
+from .rest import PointData, point_data
+from .sinks import Frame, MeshTopology, Sink
+from .stats import StepStats
+
+_MEMBRANES = {"fbw": MembraneFBW, "stvk": MembraneStVK}
+
+
+def _membrane_params(material: Material) -> tuple[float, float]:
+    if material.membrane == "fbw":
+        return material.h * material.k_st, material.h * material.k_sh
+    mu, lam = material.lame
+    return material.h * mu, material.h * lam
+
+
+@dataclass
+class Piece:
+    """One simulated patch and its embedded output mesh."""
+
+    name: str
+    patch: Patch
+    material: Material
+    offset: int  # first global control-point index
+    W: sp.csr_matrix  # (V, n_cp) vertex interpolation
+    topology: MeshTopology
+
+    @property
+    def slice(self) -> slice:
+        return slice(self.offset, self.offset + self.patch.n_control_points)
+
+
+class Simulator:
+    """B-spline cloth without contact.
+
+    patches / materials: one material per patch. pins: groups of global control-point
+    indices. gravity (3,) m/s^2; pressure in Pa along pressure_directions[k] for patch k.
+    mode "dynamic" (implicit Euler) or "quasistatic" (static equilibrium per step; pins
+    move by velocity * dt per step).
+    """
+
+    def __init__(
+        self,
+        patches: list[Patch],
+        materials: list[Material],
+        pins: Iterable[PinGroup] = (),
+        gravity=(0.0, 0.0, -9.81),
+        pressure: float = 0.0,
+        pressure_directions: list[np.ndarray] | None = None,
+        dt: float = 0.01,
+        mode: str = "dynamic",
+        newton: NewtonOptions | None = None,
+        mesh_resolution: tuple[int, int] | None = None,
+    ):
+        self.dt = float(dt)
+        self.mode = mode
+        self.newton = newton or NewtonOptions()
+        self.newton.dt = self.dt
+        self.pins = list(pins)
+        offsets = np.cumsum([0] + [p.n_control_points for p in patches])
+        self.n_cp = int(offsets[-1])
+        self.pieces = []
+        for patch, material, off in zip(patches, materials, offsets):
+            res = mesh_resolution or default_resolution(*patch.shape)
+            u, v = sample_grid(*patch.shape, res)
+            W = interpolation_matrix(u, v, *patch.shape, int(off), self.n_cp)
+            rest = W[:, off:off + patch.n_control_points] @ patch.rest.reshape(-1, 2)
+            topo = MeshTopology(patch.name, grid_faces(*res), np.c_[u, v], rest)
+            self.pieces.append(Piece(patch.name, patch, material, int(off), W, topo))
+
+        # Per-point rest data, concatenated over patches.
+        membranes: dict[str, list] = {}
+        bend_parts, bend_D, mass_parts, mass_rho = [], [], [], []
+        for piece in self.pieces:
+            n, m = piece.patch.shape
+            mat = piece.material
+            X = piece.patch.rest
+            pm = point_data(X, quadrature.membrane_rule(mat.quadrature, n, m), piece.offset)
+            if mat.membrane != "none":
+                membranes.setdefault(mat.membrane, []).append((pm, _membrane_params(mat)))
+            pb = point_data(X, quadrature.bending_rule(mat.quadrature, n, m), piece.offset, second_order=True)
+            bend_parts.append(pb)
+            bend_D.append(np.full(pb.n_points, mat.bending_stiffness))
+            pg = point_data(X, quadrature.gauss(n, m, 3), piece.offset)
+            mass_parts.append(pg)
+            mass_rho.append(np.full(pg.n_points, mat.areal_density))
+
+        # Lumped masses m_a = int rho h N_a dX and nodal areas A_a = int N_a dX.
+        pg = PointData.concatenate(mass_parts)
+        rho_h = np.concatenate(mass_rho)
+        ok = pg.idx >= 0
+        wN = (pg.N * pg.w[:, None])[ok]
+        self.areas = np.bincount(pg.idx[ok], wN, minlength=self.n_cp)
+        self.mass = np.bincount(pg.idx[ok], (wN * np.broadcast_to(rho_h[:, None], pg.idx.shape)[ok]), minlength=self.n_cp)
+
+        forces = self.mass[:, None] * np.asarray(gravity, float)[None, :]
+        if pressure != 0.0:
+            for k, piece in enumerate(self.pieces):
+                d = pressure_directions[k] if pressure_directions is not None else np.array([0.0, 0.0, 1.0])
+                forces[piece.slice] += pressure * self.areas[piece.slice, None] * np.asarray(d, float)[None, :]
+
+        self.energies = []
+        self.inertia = None
+        if mode == "dynamic":
+            self.inertia = InertiaEnergy(self.mass, self.dt)
+            self.energies.append(self.inertia)
+        self.energies.append(ExternalForceEnergy(forces))
+        self.energies.append(BendingEnergy(PointData.concatenate(bend_parts), np.concatenate(bend_D), self.n_cp))
+        for model, parts in membranes.items():
+            pts = PointData.concatenate([p for p, _ in parts])
+            params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
+            self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
+
+        self.pinned = np.zeros(self.n_cp, bool)
+        for group in self.pins:
+            self.pinned[group.indices] = True
+        self.potential = IncrementalPotential(self.energies, ~self.pinned)
+
+        # State.
+        self.C = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
+        self.V = np.zeros_like(self.C)
+        self.t = 0.0
+        self.step_count = 0
+        self._pin_rest = self.C.copy()
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_scene(cls, scene, newton: NewtonOptions | None = None) -> "Simulator":
+        """Build from a validated garment.scene.Scene."""
+        patches = [c.patch() for c in scene.cloths]
+        offsets = np.cumsum([0] + [p.n_control_points for p in patches])
+        by_name = {c.name: k for k, c in enumerate(scene.cloths)}
+        groups = []
+        for pin in scene.pins:
+            k = by_name[pin.cloth]
+            local = select(patches[k].shape, pin.corners, pin.sides, pin.box, pin.depth)
+            groups.append(PinGroup(local + offsets[k], np.asarray(pin.velocity, float), pin.start, pin.duration))
+        load = scene.load
+        directions = [
+            np.asarray(load.pressure_direction, float) if load.pressure_direction is not None else c.normal
+            for c in scene.cloths
+        ]
+        tm = scene.time
+        opts = newton or NewtonOptions()
+        opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
+        return cls(
+            patches, [c.material for c in scene.cloths], groups, load.gravity, load.pressure,
+            directions, tm.dt, tm.mode, opts, scene.output.mesh_resolution,
+        )
+
+    # ------------------------------------------------------------------ state access
+    @property
+    def n_dofs(self) -> int:
+        return 3 * int((~self.pinned).sum())
+
+    def pin_targets(self, t: float) -> np.ndarray:
+        """(n_cp, 3) positions with every pinned point moved to its place at time t."""
+        C = self.C.copy()
+        for group in self.pins:
+            C[group.indices] = self._pin_rest[group.indices] + group.displacement(t)
+        return C
+
+    def control_points(self, name: str) -> np.ndarray:
+        piece = self._piece(name)
+        return self.C[piece.slice].reshape(*piece.patch.shape, 3)
+
+    def positions(self, name: str | None = None) -> np.ndarray | dict[str, np.ndarray]:
+        """Embedded mesh vertices (V, 3) of one piece, or a dict of all pieces."""
+        if name is None:
+            return {p.name: p.W @ self.C for p in self.pieces}
+        return self._piece(name).W @ self.C
+
+    def _piece(self, name: str) -> Piece:
+        for p in self.pieces:
+            if p.name == name:
+                return p
+        raise KeyError(f"no cloth named {name!r}")
+
+    # ------------------------------------------------------------------ stepping
+    def step(self) -> StepStats:
+        """Advance one time step (or one quasi-static load increment)."""
+        start = _time.perf_counter()
+        t_next = self.t + self.dt
+        stats = StepStats(step=self.step_count + 1, time=t_next)
+        targets = self.pin_targets(t_next)
+        if self.inertia is not None:
+            C_hat = self.C + self.dt * self.V
+            self.inertia.target = C_hat
+            x0 = np.where(self.pinned[:, None], targets, C_hat)
+        else:
+            x0 = targets
+        C_new = minimize(self.potential, x0, self.newton, stats)
+        if self.inertia is not None:
+            self.V = (C_new - self.C) / self.dt
+        self.C = C_new
+        self.t = t_next
+        self.step_count += 1
+        stats.t_total = _time.perf_counter() - start
+        return stats
+
+    def run(
+        self,
+        frames: int,
+        steps_per_frame: int = 1,
+        sinks: Iterable[Sink] = (),
+        on_step: Callable[[StepStats], None] | None = None,
+    ) -> list[StepStats]:
+        """Write the initial frame, then `frames` frames of `steps_per_frame` steps each.
+
+        Sinks are opened here and always closed, even when a step raises.
+        """
+        sinks = list(sinks)
+        all_stats: list[StepStats] = []
+        opened = []
+        try:
+            for s in sinks:
+                s.open([p.topology for p in self.pieces])
+                opened.append(s)
+            self._emit(sinks, 0, [])
+            for k in range(1, frames + 1):
+                steps = []
+                for _ in range(steps_per_frame):
+                    st = self.step()
+                    steps.append(st)
+                    if on_step is not None:
+                        on_step(st)
+                all_stats.extend(steps)
+                self._emit(sinks, k, steps)
+        finally:
+            for s in opened:
+                s.close()
+        return all_stats
+
+    def _emit(self, sinks, index, steps):
+        if sinks:
+            frame = Frame(index, self.t, self.positions(), steps)
+            for s in sinks:
+                s.write(frame)

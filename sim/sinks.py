@@ -1,0 +1,44 @@
+"""Where simulated frames go. `sim` hands frames to sinks and never imports `viz`.
+
+A sink is any object with `open(meshes)`, `write(frame)` and `close()`; several sinks can
+run at once. `viz` provides the Rerun and PyVista sinks, `garment.io` the mesh exporter.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from .stats import StepStats
+
+
+@dataclass
+class MeshTopology:
+    """Static part of one embedded triangle mesh: faces (F, 3) int32 and the fixed
+    parametric coordinates (V, 2) of its vertices (rest positions (V, 2) in metres)."""
+
+    name: str
+    faces: np.ndarray
+    uv: np.ndarray
+    rest: np.ndarray
+
+
+@dataclass
+class Frame:
+    """One output frame: vertex positions (V, 3) float64 in metres per cloth piece, and
+    the statistics of the steps taken since the previous frame."""
+
+    index: int
+    time: float
+    positions: dict[str, np.ndarray]
+    steps: list[StepStats] = field(default_factory=list)
+
+
+class Sink(Protocol):
+    def open(self, meshes: list[MeshTopology]) -> None: ...
+
+    def write(self, frame: Frame) -> None: ...
+
+    def close(self) -> None: ...

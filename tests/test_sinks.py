@@ -1,0 +1,117 @@
+"""Round trips through the output sinks: Rerun recording and per-frame mesh files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+from garment.io import MeshExportSink, read_frame
+from sim.sinks import Frame, MeshTopology
+from sim.stats import StepStats
+from viz.rerun_sink import RerunSink, read_rrd_faces, read_rrd_positions, vertex_normals
+
+N_FRAMES = 5
+DT = 1.0 / 30.0  # s between frames
+
+
+def grid(name: str, nx: int = 5, ny: int = 4, size: float = 0.5) -> MeshTopology:
+    """nx x ny vertex grid of side `size` m, two triangles per cell."""
+    u, v = np.meshgrid(np.linspace(0, 1, nx), np.linspace(0, 1, ny), indexing="xy")
+    uv = np.column_stack([u.ravel(), v.ravel()])
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="xy")
+    a = (j * nx + i).ravel()
+    faces = np.concatenate([np.column_stack([a, a + 1, a + nx + 1]), np.column_stack([a, a + nx + 1, a + nx])])
+    return MeshTopology(name, faces.astype(np.int32), uv, uv * size)
+
+
+MESHES = [grid("front"), grid("back", 4, 3)]
+
+
+def positions(m: MeshTopology, k: int) -> np.ndarray:
+    """Sinusoidal wave (V, 3) in m at frame k; float64 with non-representable digits."""
+    x, y = m.rest.T
+    z = 0.05 * np.sin(2 * np.pi * (x + 0.1 * k) + len(m.name)) + 1e-3 * k * y
+    return np.column_stack([x + 0.01 * k, y, z]) / 3.0
+
+
+def frames():
+    for k in range(N_FRAMES):
+        steps = [
+            StepStats(step=2 * k + s, time=(k + 0.5 * s) * DT, newton_iterations=3 + s, residual=1e-6,
+                      energy=0.1 * k, converged=True, t_assembly=1e-3, t_total=5e-3)
+            for s in range(2)
+        ]
+        yield Frame(k, k * DT, {m.name: positions(m, k) for m in MESHES}, steps)
+
+
+def test_rerun_round_trip(tmp_path):
+    path = tmp_path / "out" / "run.rrd"  # parent does not exist yet
+    sink = RerunSink(path, recording_name="test")
+    sink.open(MESHES)
+    for f in frames():
+        sink.write(f)
+    assert not path.exists()  # only the temporary file exists until close()
+    sink.close()
+    assert path.exists()
+    assert [p.name for p in path.parent.iterdir()] == ["run.rrd"]
+
+    got = read_rrd_positions(path)
+    faces = read_rrd_faces(path)
+    assert set(got) == set(faces) == {m.name for m in MESHES}
+    for m in MESHES:
+        assert got[m.name].dtype == np.float32
+        assert got[m.name].shape == (N_FRAMES, len(m.uv), 3)
+        want = np.stack([positions(m, k) for k in range(N_FRAMES)]).astype(np.float32)
+        np.testing.assert_array_equal(got[m.name], want)
+        np.testing.assert_array_equal(faces[m.name], m.faces)
+
+    # Stats: one scalar per frame; newton iterations summed over the frame's 2 steps.
+    # (The batcher may split rows over several chunks, so gather them all.)
+    rows = {}
+    for c in RrdReader(path).stream():
+        if c.entity_path == "/stats/newton_iterations":
+            b = c.to_record_batch()
+            rows.update(zip(b.column("frame").to_pylist(), b.column("Scalars:scalars").to_pylist()))
+    assert rows == {k: [7.0] for k in range(N_FRAMES)}
+
+
+def test_vertex_normals_flat_grid():
+    m = MESHES[0]
+    flat = np.column_stack([m.rest, np.zeros(len(m.rest))])
+    n = vertex_normals(flat, m.faces)
+    np.testing.assert_allclose(n, np.tile([0.0, 0.0, 1.0], (len(flat), 1)), atol=1e-7)
+
+
+@pytest.mark.parametrize("fmt", ["npz", "obj", "ply"])
+def test_mesh_export_round_trip(tmp_path, fmt):
+    sink = MeshExportSink(tmp_path / "frames", fmt)
+    sink.open(MESHES)
+    for f in frames():
+        sink.write(f)
+    sink.close()
+
+    files = sorted(p.name for p in (tmp_path / "frames").iterdir())
+    assert files == sorted(f"{m.name}_{k:05d}.{fmt}" for m in MESHES for k in range(N_FRAMES))
+    for m in MESHES:
+        for k in range(N_FRAMES):
+            verts, faces = read_frame(sink.path(m.name, k))
+            # npz/ply are binary float64; obj is text with 17 significant digits.
+            np.testing.assert_allclose(verts, positions(m, k), rtol=0, atol=1e-15)
+            np.testing.assert_array_equal(faces, m.faces)
+
+
+def test_npz_contents(tmp_path):
+    sink = MeshExportSink(tmp_path, "npz")
+    sink.open(MESHES)
+    f = next(frames())
+    sink.write(f)
+    with np.load(sink.path("front", 0)) as d:
+        assert d["verts"].dtype == np.float64 and d["faces"].dtype == np.int32
+        np.testing.assert_array_equal(d["uv"], MESHES[0].uv)
+        assert float(d["time"]) == f.time and int(d["frame"]) == 0
+
+
+def test_unknown_format(tmp_path):
+    with pytest.raises(ValueError):
+        MeshExportSink(tmp_path, "stl")
