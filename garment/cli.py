@@ -183,8 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except SceneError as e:
-        err.print("[red]error:[/red] ", end="")
-        err.print(str(e), markup=False, highlight=False)
+        print(f"error: {e}", file=sys.stderr)  # plain: no markup, no wrapping
         return 2
     except KeyboardInterrupt:
         err.print("[yellow]interrupted[/yellow]")

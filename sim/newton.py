@@ -61,7 +61,10 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
             trial[free] = C[free] + alpha * step
             E_new = ip.value(trial)
             stats.line_search_steps += 1
-            if E_new <= E + opts.armijo * alpha * slope or alpha < opts.min_step:
+            # Near the minimum the predicted decrease drops below the round-off of E;
+            # accept steps that do not increase E beyond that round-off.
+            noise = 16.0 * np.finfo(float).eps * max(abs(E), abs(E_new))
+            if E_new <= E + opts.armijo * alpha * slope + noise or alpha < opts.min_step:
                 break
             alpha *= 0.5
         stats.t_line_search += time.perf_counter() - t3

@@ -101,8 +101,10 @@ def _point_kernel(X, fu, Nu, dNu, d2Nu, fv, Nv, dNv, d2Nv, wpar, second_order):
                     Xuv[d] += dNu[q, a] * dNv[q, b] * x
                     Xvv[d] += Nu[q, a] * d2Nv[q, b] * x
         J = Xu[0] * Xv[1] - Xu[1] * Xv[0]
-        det[q] = abs(J)
+        det[q] = J  # signed: the caller rejects singular and folded rest maps
         w[q] = wpar[q] * abs(J)
+        if J == 0.0:
+            continue
         # A = (dX/du)^-1: rows are grad u = (u_1, u_2) and grad v = (v_1, v_2).
         A = np.empty((2, 2))
         A[0, 0] = Xv[1] / J
@@ -162,8 +164,11 @@ def point_data(X: np.ndarray, rule: Rule, offset: int = 0, second_order: bool = 
     fv, Nv, dNv, d2Nv = eval_1d_many(np.ascontiguousarray(rule.v), m)
     idx, g, lap, N, w, det = _point_kernel(X, fu, Nu, dNu, d2Nu, fv, Nv, dNv, d2Nv,
                                            np.ascontiguousarray(rule.w), second_order)
-    if np.any(det <= 0.0) or not np.all(np.isfinite(det)):
+    if not np.all(np.isfinite(det)) or np.any(det == 0.0):
         raise ValueError("rest map is degenerate: dX/du is singular at a quadrature point")
+    if np.any(det > 0.0) and np.any(det < 0.0):
+        raise ValueError("rest map folds over: det dX/du changes sign between quadrature points")
+    det = np.abs(det)
     # Compact: move active entries to the front of each row.
     order = np.argsort(idx < 0, axis=1, kind="stable")
     K = int((idx >= 0).sum(axis=1).max())
