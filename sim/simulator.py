@@ -143,7 +143,7 @@ class Simulator:
         self.V = np.zeros_like(self.C)
         self.t = 0.0
         self.step_count = 0
-        self._pin_rest = self.C.copy()
+        self.C0 = self.C.copy()  # initial control points: pins move relative to these
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -179,7 +179,7 @@ class Simulator:
         """(n_cp, 3) positions with every pinned point moved to its place at time t."""
         C = self.C.copy()
         for group in self.pins:
-            C[group.indices] = self._pin_rest[group.indices] + group.displacement(t)
+            C[group.indices] = self.C0[group.indices] + group.displacement(t)
         return C
 
     def control_points(self, name: str) -> np.ndarray:

@@ -27,6 +27,8 @@ def test_plate_gauss_rules_agree():
 
 
 @pytest.mark.slow
-def test_wrinkle_deflection_in_reference_range():
-    case = wrinkle.solve(20)
-    assert 2.0 < case["max_deflection_mm"] < 5.0
+def test_wrinkle_deflection_approaches_reference():
+    # Measured: 2.25 mm at 30 x 72, 2.79 mm at 40 x 97 control points (reference 3.45 mm).
+    coarse, fine = wrinkle.solve(30), wrinkle.solve(40)
+    assert coarse["max_deflection_mm"] < fine["max_deflection_mm"] < 1.1 * wrinkle.REFERENCE_MM
+    assert fine["max_deflection_mm"] > 0.7 * wrinkle.REFERENCE_MM

@@ -36,7 +36,7 @@ def solve(n: int, quadrature: str = "reduced") -> dict:
     seconds = time.perf_counter() - start
     centre = np.array([(n - 2) / 2.0])
     W = interpolation_matrix(centre, centre, n, n, 0, sim.n_cp)
-    w = float(np.abs((W @ sim.C)[0] - (W @ sim._pin_rest)[0]) @ np.abs(np.asarray(sc.load.pressure_direction)))
+    w = abs(float((W @ (sim.C - sim.C0))[0] @ np.asarray(sc.load.pressure_direction)))
     a = cloth.size[0]
     analytic = navier_coefficient() * sc.load.pressure * a**4 / cloth.material.bending_stiffness
     return {

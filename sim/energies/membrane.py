@@ -44,8 +44,7 @@ class MembraneEnergy(Energy):
         type(self).density(self._F, self.params, project, self._psi, self._P, self._H)
 
     def value(self, C):
-        deformation_gradients(C, self.points.idx, self.points.g, self._F)
-        type(self).density(self._F, self.params, False, self._psi, self._P, self._H)
+        self._evaluate(C, False)
         return float(self._psi @ self.points.w)
 
     def add_gradient(self, C, out):
