@@ -205,15 +205,14 @@ class Simulator:
         t_next = self.t + self.dt
         stats = StepStats(step=self.step_count + 1, time=t_next)
         targets = self.pin_targets(t_next)
+        # Predictor C + dt V: the inertia target in dynamics, the secant (last increment)
+        # predictor in quasi-statics (wrinkle 20x47: 41 -> 33 Newton iterations per load step).
+        C_hat = self.C + self.dt * self.V
         if self.inertia is not None:
-            C_hat = self.C + self.dt * self.V
             self.inertia.target = C_hat
-            x0 = np.where(self.pinned[:, None], targets, C_hat)
-        else:
-            x0 = targets
+        x0 = np.where(self.pinned[:, None], targets, C_hat)
         C_new = minimize(self.potential, x0, self.newton, stats)
-        if self.inertia is not None:
-            self.V = (C_new - self.C) / self.dt
+        self.V = (C_new - self.C) / self.dt
         self.C = C_new
         self.t = t_next
         self.step_count += 1
