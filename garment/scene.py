@@ -82,6 +82,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from garment.errors import InputError
 from garment.materials import MEMBRANE_MODELS, MIN_CONTROL_POINTS, PRESETS, QUADRATURES, Material
 from garment.model import Patch
 
@@ -94,7 +95,7 @@ ORTHOGONALITY_TOL = 1e-6
 
 
 
-class SceneError(ValueError):
+class SceneError(InputError):
     """A scene file problem, formatted as ``"{file}: {key}: {problem}"``."""
 
     def __init__(self, file: str | Path, key: str, problem: str):

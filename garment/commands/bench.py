@@ -1,0 +1,46 @@
+"""`garment bench NAME [--resolution N] [--steps K] [--quadrature Q] [--json]`."""
+
+from __future__ import annotations
+
+import json
+
+from .console import print_table, progress
+
+
+def run(args) -> int:
+    from garment.bench import BENCHMARKS
+
+    bench = BENCHMARKS[args.name]
+    resolutions = (args.resolution,) if args.resolution else bench.resolutions
+    kwargs = {"steps": args.steps}
+    if args.quadrature:
+        kwargs["quadrature"] = args.quadrature
+    with progress(args.quiet or args.json) as bar:
+        task = bar.add_task(args.name, total=None, status="")
+
+        def on_step(n, st):
+            bar.update(task, advance=1, status=f"{n}^2 step {st.step}: newton {st.newton_iterations}, "
+                                               f"{st.t_total:.2f} s")
+
+        if bench.reports_steps:
+            kwargs["progress"] = on_step
+        cases = bench.run(resolutions, **kwargs)
+    if args.json:
+        print(json.dumps({"benchmark": args.name, "cases": cases}, indent=1))
+    else:
+        print_table(f"garment bench {args.name}: {bench.description}", bench.columns, cases)
+    return 0
+
+
+def register(sub) -> None:
+    from garment.bench import BENCHMARKS
+    from garment.materials import QUADRATURES
+
+    b = sub.add_parser("bench", help="run a benchmark and print its table")
+    b.add_argument("name", choices=sorted(BENCHMARKS))
+    b.add_argument("--resolution", type=int, help="run one case: an N x N control net")
+    b.add_argument("--steps", type=int, help="time steps per case")
+    b.add_argument("--quadrature", choices=QUADRATURES)
+    b.add_argument("--json", action="store_true", help="print one JSON object")
+    b.add_argument("-q", "--quiet", action="store_true")
+    b.set_defaults(func=run)
