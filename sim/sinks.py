@@ -16,19 +16,25 @@ from .stats import StepStats
 
 @dataclass
 class MeshTopology:
-    """Static part of one embedded triangle mesh: faces (F, 3) int32 and the fixed
-    parametric coordinates (V, 2) of its vertices (rest positions (V, 2) in metres)."""
+    """Static part of one triangle mesh: faces (F, 3) int32; for cloth also the fixed
+    parametric coordinates uv (V, 2) and rest positions (V, 2) in metres of its vertices.
+
+    kind: "cloth" (an embedded B-spline mesh) or "body" (an obstacle or animated body,
+    whose uv and rest are empty (0, 2) arrays).
+    """
 
     name: str
     faces: np.ndarray
     uv: np.ndarray
     rest: np.ndarray
+    kind: str = "cloth"
 
 
 @dataclass
 class Frame:
-    """One output frame: vertex positions (V, 3) float64 in metres per cloth piece, and
-    the statistics of the steps taken since the previous frame."""
+    """One output frame: vertex positions (V, 3) float64 in metres per mesh (cloth pieces
+    and bodies, keyed by MeshTopology.name), and the statistics of the steps taken since
+    the previous frame."""
 
     index: int
     time: float
