@@ -74,3 +74,124 @@ class Patch:
         av /= np.linalg.norm(av)
         world = np.asarray(origin, float) + S[..., None] * au + T[..., None] * av
         return cls(name, rest, world)
+
+
+# ---------------------------------------------------------------- panels, seams, patch sets
+# The conforming stage (conform/) turns Panels into Patches; seams given between panels
+# become seams between patch boundaries. Everything in metres.
+
+SIDES = ("v0", "u1", "v1", "u0")
+"""Patch sides in counter-clockwise order: v0 (v = 0, u increasing), u1 (u = n-2), v1
+(v = m-2, u decreasing), u0 (u = 0, v decreasing). Names as in scene pins."""
+
+
+@dataclass
+class Panel:
+    """A flat garment panel: a triangle mesh or an outline in its rest layout.
+
+    rest:      (V, 2) vertex positions in the flat layout, metres.
+    faces:     (F, 3) int triangles into rest, or None for an outline-only panel, whose
+               vertices are the closed outline in counter-clockwise order.
+    world:     (V, 3) placement of the vertices in 3D (metres), or None.
+    transform: (4, 4) rigid placement of the layout plane, world = R [x, y, 0] + t, or None
+               (neither world nor transform: the panel lies flat at z = 0).
+    vertex_ids: (V,) ids of the vertices in the source file (0-based), for messages,
+               corner overrides and provenance.
+    corner_hints: vertex indices preferred as corners (pattern vertices, seam endpoints).
+    segment_edges: outline panels only, (V,) id of the source edge that the outline
+               segment from vertex k to k+1 belongs to (GarmentCode edge index).
+    area:      reference rest area, m^2 (None: the triangles' area).
+    """
+
+    name: str
+    source: str
+    rest: np.ndarray
+    faces: np.ndarray | None = None
+    world: np.ndarray | None = None
+    transform: np.ndarray | None = None
+    vertex_ids: np.ndarray | None = None
+    corner_hints: np.ndarray | None = None
+    segment_edges: np.ndarray | None = None
+    area: float | None = None
+
+    def __post_init__(self) -> None:
+        self.rest = np.ascontiguousarray(self.rest, dtype=np.float64).reshape(-1, 2)
+        if self.faces is not None:
+            self.faces = np.ascontiguousarray(self.faces, dtype=np.int64).reshape(-1, 3)
+        if self.world is not None:
+            self.world = np.ascontiguousarray(self.world, dtype=np.float64).reshape(-1, 3)
+        if self.vertex_ids is None:
+            self.vertex_ids = np.arange(self.rest.shape[0])
+        if self.corner_hints is None:
+            self.corner_hints = np.zeros(0, dtype=np.int64)
+
+    def place(self, points: np.ndarray) -> np.ndarray:
+        """3D positions (P, 3) of rest points (P, 2) under the rigid transform (or z = 0)."""
+        points = np.asarray(points, float)
+        flat = np.concatenate([points, np.zeros((points.shape[0], 1))], axis=1)
+        if self.transform is None:
+            return flat
+        T = np.asarray(self.transform, float)
+        return flat @ T[:3, :3].T + T[:3, 3]
+
+
+@dataclass
+class PanelSeam:
+    """Matched points along a seam between two panels (or within one, e.g. a dart).
+
+    points_a, points_b: (K, 2) rest positions on panel_a and panel_b that are sewn
+    together, in order along the seam; vertices_a / vertices_b: (K,) vertex index on that
+    panel when the point is a vertex, else -1 (None: all -1).
+    """
+
+    name: str
+    panel_a: str
+    panel_b: str
+    points_a: np.ndarray
+    points_b: np.ndarray
+    vertices_a: np.ndarray | None = None
+    vertices_b: np.ndarray | None = None
+
+
+@dataclass
+class BoundaryInterval:
+    """A stretch of one patch side: parameter t along the side from t0 to t1 (t0 > t1
+    runs against the side's direction). t is u on v0/v1 and v on u0/u1."""
+
+    side: str
+    t0: float
+    t1: float
+
+
+@dataclass
+class PatchSeam:
+    """A seam between patch boundaries: matched parameter samples uv_a[k] ~ uv_b[k]
+    ((K, 2) each, in the patches' parameter domains) and the boundary intervals they
+    cover on each patch (consecutive samples on one side, split at corners)."""
+
+    name: str
+    patch_a: str
+    patch_b: str
+    uv_a: np.ndarray
+    uv_b: np.ndarray
+    intervals_a: list[BoundaryInterval]
+    intervals_b: list[BoundaryInterval]
+
+
+@dataclass
+class PatchSet:
+    """Conformed patches with their seams, provenance and quality reports (by patch name),
+    and the panels that failed (name -> message)."""
+
+    patches: list[Patch]
+    seams: list[PatchSeam]
+    provenance: dict
+    quality: dict
+    failures: dict
+    source: str = ""
+
+    def patch(self, name: str) -> Patch:
+        for p in self.patches:
+            if p.name == name:
+                return p
+        raise KeyError(name)

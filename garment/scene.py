@@ -199,6 +199,43 @@ class OutputSpec:
 
 
 @dataclass
+class ObstacleSpec:
+    """A static collision obstacle: a triangle mesh file, a meshed sphere or a plane.
+
+    mesh: path (relative paths resolve against the scene file's folder), scaled by
+    `scale`, turned Z-up when `up` = "y", then moved by `translate`. sphere: `center`,
+    `radius`, icosphere `subdivisions`. plane: `point`, `normal`, `size` (a square of side
+    `size` m, meshed with two triangles).
+    """
+
+    name: str
+    kind: str  # "mesh" | "sphere" | "plane"
+    mesh: Path | None = None
+    scale: float = 1.0
+    up: str = "z"
+    translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 0.0
+    subdivisions: int = 3
+    point: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    size: float = 10.0
+
+
+@dataclass
+class ContactSpec:
+    """IPC contact: barrier activation distance dhat (m), stiffness kappa (Pa, area-weighted
+    barrier), friction mu and eps_v (m/s), cloth self-contact on or off."""
+
+    enabled: bool = False
+    dhat: float = 1e-3
+    kappa: float = 1e5
+    mu: float = 0.0
+    eps_v: float = 1e-3
+    self_contact: bool = True
+
+
+@dataclass
 class Scene:
     name: str
     path: Path | None
@@ -208,6 +245,8 @@ class Scene:
     time: TimeSpec = field(default_factory=TimeSpec)
     output: OutputSpec = field(default_factory=OutputSpec)
     description: str = ""
+    obstacles: list[ObstacleSpec] = field(default_factory=list)
+    contact: ContactSpec = field(default_factory=ContactSpec)
 
 
 # --------------------------------------------------------------------------- entry points
@@ -244,6 +283,8 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
     info = root.table("scene", ("name", "description"))
     material = _read_material(root.table("material", _MATERIAL_KEYS), PRESETS["cotton"])
     cloths = _read_cloths(root, material)
+    base = path.parent if path is not None else Path(".")
+    obstacles = [_read_obstacle(t, i, base) for i, t in enumerate(root.tables("obstacle", _OBSTACLE_KEYS))]
     return Scene(
         name=info.string("name") or (path.stem if path else "scene"),
         path=path,
@@ -253,12 +294,14 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
         time=_read_time(root.table("time", _TIME_KEYS)),
         output=_read_output(root.table("output", _OUTPUT_KEYS)),
         description=info.string("description", allow_empty=True) or "",
+        obstacles=obstacles,
+        contact=_read_contact(root, bool(obstacles)),
     )
 
 
 # --------------------------------------------------------------------------- tables
 
-_TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output")
+_TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact")
 _MATERIAL_NUMBERS = {  # key -> bounds
     "E_st": {"gt": 0},
     "E_sh": {"ge": 0},
@@ -276,6 +319,11 @@ _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
 _TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
+_OBSTACLE_KEYS = ("name", "mesh", "scale", "up", "translate", "sphere", "plane")
+_SPHERE_KEYS = ("center", "radius", "subdivisions")
+_PLANE_KEYS = ("point", "normal", "size")
+_CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact")
+UP_AXES = ("y", "z")
 
 
 def _given(**values: Any) -> dict[str, Any]:
@@ -442,6 +490,57 @@ def _read_output(t: _Table) -> OutputSpec:
             mesh_resolution=t.integers("mesh_resolution", 2, ge=2),
         )
     )
+
+
+def _read_obstacle(t: _Table, index: int, base: Path) -> ObstacleSpec:
+    kinds = [k for k in ("mesh", "sphere", "plane") if k in t]
+    if len(kinds) != 1:
+        t.fail(t.path, f"needs exactly one of 'mesh', 'sphere', 'plane', got {kinds or 'none'}")
+    kind = kinds[0]
+    values: dict[str, Any] = {"name": t.string("name") or f"obstacle{index}", "kind": kind}
+    if kind == "mesh":
+        mesh = Path(t.string("mesh", required=True))
+        mesh = mesh if mesh.is_absolute() else base / mesh
+        if not mesh.is_file():
+            t.fail(t.key("mesh"), f"no such file: {mesh}")
+        values.update(_given(mesh=mesh, scale=t.number("scale", gt=0), up=t.choice("up", UP_AXES),
+                             translate=t.numbers("translate", 3)))
+    elif kind == "sphere":
+        sp = t.table("sphere", _SPHERE_KEYS)
+        values.update(_given(center=sp.numbers("center", 3), radius=sp.number("radius", required=True, gt=0),
+                             subdivisions=sp.integer("subdivisions", ge=0, le=6)))
+    else:
+        pl = t.table("plane", _PLANE_KEYS)
+        normal = pl.numbers("normal", 3)
+        if normal is not None:
+            norm = math.hypot(*normal)
+            if norm == 0.0:
+                pl.fail(pl.key("normal"), "must be non-zero")
+            normal = tuple(x / norm for x in normal)
+        values.update(_given(point=pl.numbers("point", 3), normal=normal, size=pl.number("size", gt=0)))
+    return ObstacleSpec(**values)
+
+
+def _read_contact(root: _Table, has_obstacles: bool) -> ContactSpec:
+    present = "contact" in root
+    t = root.table("contact", _CONTACT_KEYS)
+    enabled = t.read("enabled", _as_bool)
+    return ContactSpec(
+        **_given(
+            enabled=enabled if enabled is not None else (present or has_obstacles),
+            dhat=t.number("dhat", gt=0),
+            kappa=t.number("kappa", gt=0),
+            mu=t.number("mu", ge=0),
+            eps_v=t.number("eps_v", gt=0),
+            self_contact=t.read("self_contact", _as_bool),
+        )
+    )
+
+
+def _as_bool(t: "_Table", value: Any, key: str) -> bool:
+    if not isinstance(value, bool):
+        t.fail(key, f"must be true or false, got {_kind(value)}")
+    return value
 
 
 # --------------------------------------------------------------------------- typed reading

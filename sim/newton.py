@@ -38,7 +38,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         g = ip.gradient(C)[free].ravel()
         ip.assemble(C, opts.project)
         t1 = time.perf_counter()
-        ip.solver.factorize(ip.matrix)
+        ip.solver.factorize(ip.system)
         t2 = time.perf_counter()
         p = -ip.solver.solve(g)
         t3 = time.perf_counter()
@@ -52,11 +52,18 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if stats.residual < opts.tol:
             stats.converged = True
             break
-        # Backtracking (Armijo) line search on the full potential.
+        # Backtracking (Armijo) line search on the full potential, started from the
+        # largest collision-free fraction of the step (CCD) when there is contact.
         slope = float(g @ p)
-        alpha = 1.0
         step = p.reshape(-1, 3)
         trial = C.copy()
+        if ip.variable:
+            trial[free] = C[free] + step
+            t_ccd = time.perf_counter()
+            alpha = ip.max_step(C, trial)
+            stats.extra["t_ccd"] = stats.extra.get("t_ccd", 0.0) + time.perf_counter() - t_ccd
+        else:
+            alpha = 1.0
         while True:
             trial[free] = C[free] + alpha * step
             E_new = ip.value(trial)

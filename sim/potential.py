@@ -7,6 +7,7 @@ Newton iteration copies them and lets the state-dependent energies add their blo
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from .assembly import BlockPattern
 from .energies.base import Energy
@@ -31,7 +32,13 @@ class IncrementalPotential:
                 e.add_hessian(None, self.const_data)
         self.data = self.const_data.copy()
         self.matrix = self.pattern.matrix(self.data)
+        self.system = self.matrix  # what the solver factors: matrix (+ contact, when any)
         self.solver = CholeskySolver(self.matrix)
+        self.variable = [e for e in energies if e.variable_pattern]
+        # Rows of the free DOFs among all 3 n_cp DOFs, to restrict variable-pattern Hessians.
+        dofs = (3 * self.free_points[:, None] + np.arange(3)).ravel()
+        self._select = sp.csr_matrix((np.ones(dofs.size), (np.arange(dofs.size), dofs)),
+                                     shape=(dofs.size, 3 * self.n_cp))
 
     def value(self, C: np.ndarray) -> float:
         return sum(e.value(C) for e in self.energies)
@@ -44,11 +51,24 @@ class IncrementalPotential:
         return g
 
     def assemble(self, C: np.ndarray, project: bool = True) -> None:
-        """Write the Hessian at C (free DOFs, lower triangle) into `self.matrix`."""
+        """Write the Hessian at C (free DOFs, lower triangle) into `self.system`."""
         self.data[:] = self.const_data
         for e in self.energies:
             if not e.constant_hessian:
                 e.add_hessian(C, self.data, project)
+        extra = [H for e in self.variable if (H := e.hessian_matrix(C, project)) is not None]
+        if not extra:
+            self.system = self.matrix
+            return
+        S = self._select
+        H = S @ sum(extra[1:], extra[0]) @ S.T
+        # Merge into the fixed pattern; the solver re-analyses only when the union changes.
+        self.system = (self.matrix + sp.tril(H, format="csc")).tocsc()
+        self.system.sort_indices()
+
+    def max_step(self, C0: np.ndarray, C1: np.ndarray) -> float:
+        """Largest fraction of C0 -> C1 every energy allows (collision-free for contact)."""
+        return min([1.0] + [e.max_step(C0, C1) for e in self.variable])
 
     def full_hessian(self):
         """The assembled symmetric matrix (both triangles), for tests and diagnostics."""

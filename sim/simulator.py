@@ -13,12 +13,18 @@ from typing import Callable, Iterable
 import numpy as np
 import scipy.sparse as sp
 
+from garment.errors import InputError
+from garment.io.obstacles import load_obstacle
 from garment.materials import Material
 from garment.model import Patch
 
+import ipctk
+
 from . import quadrature
+from .contact.mesh import ContactMesh
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
+from .energies.barrier import BarrierEnergy
 from .newton import NewtonOptions, minimize
 from .pins import PinGroup, select
 from .potential import IncrementalPotential
@@ -73,6 +79,8 @@ class Simulator:
         mode: str = "dynamic",
         newton: NewtonOptions | None = None,
         mesh_resolution: tuple[int, int] | None = None,
+        contact=None,
+        obstacles=(),
     ):
         self.dt = float(dt)
         self.mode = mode
@@ -133,6 +141,12 @@ class Simulator:
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
             self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
 
+        self.obstacles = list(obstacles)
+        self.barrier = None
+        if contact is not None and contact.enabled:
+            self.barrier = self._contact_energy(contact)
+            self.energies.append(self.barrier)
+
         self.pinned = np.zeros(self.n_cp, bool)
         for group in self.pins:
             self.pinned[group.indices] = True
@@ -146,6 +160,25 @@ class Simulator:
         self.C0 = self.C.copy()  # initial control points: pins move relative to these
 
     # ------------------------------------------------------------------ construction
+    def _contact_energy(self, contact) -> BarrierEnergy:
+        """IPC barrier on the pieces' embedded meshes and the obstacles."""
+        W = sp.vstack([p.W for p in self.pieces]).tocsr()
+        faces, offset = [], 0
+        for p in self.pieces:
+            faces.append(p.topology.faces + offset)
+            offset += p.W.shape[0]
+        ids = np.concatenate([np.full(p.W.shape[0], k) for k, p in enumerate(self.pieces)])
+        C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
+        mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact)
+        x0 = mesh.vertices(C0)
+        if ipctk.has_intersections(mesh.mesh, x0):
+            raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
+        barrier = BarrierEnergy(mesh, contact.dhat, contact.kappa)
+        d = barrier.min_distance(C0)
+        if d <= 0.0:
+            raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
+        return barrier
+
     @classmethod
     def from_scene(cls, scene, newton: NewtonOptions | None = None) -> "Simulator":
         """Build from a validated garment.scene.Scene."""
@@ -168,6 +201,7 @@ class Simulator:
         return cls(
             patches, [c.material for c in scene.cloths], groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, scene.output.mesh_resolution,
+            scene.contact, [load_obstacle(o) for o in scene.obstacles],
         )
 
     # ------------------------------------------------------------------ state access
@@ -212,6 +246,9 @@ class Simulator:
             self.inertia.target = C_hat
         x0 = np.where(self.pinned[:, None], targets, C_hat)
         C_new = minimize(self.potential, x0, self.newton, stats)
+        if self.barrier is not None:
+            stats.extra["contact_count"] = float(self.barrier.n_collisions)
+            stats.extra["min_distance"] = self.barrier.min_distance(C_new)
         self.V = (C_new - self.C) / self.dt
         self.C = C_new
         self.t = t_next
@@ -235,7 +272,7 @@ class Simulator:
         opened = []
         try:
             for s in sinks:
-                s.open([p.topology for p in self.pieces])
+                s.open(self.topologies())
                 opened.append(s)
             self._emit(sinks, 0, [])
             for k in range(1, frames + 1):
@@ -252,8 +289,15 @@ class Simulator:
                 s.close()
         return all_stats
 
+    def topologies(self) -> list[MeshTopology]:
+        """Static mesh data for sinks: cloth pieces, then obstacles (kind "body")."""
+        empty = np.zeros((0, 2))
+        return [p.topology for p in self.pieces] + [
+            MeshTopology(o.name, o.faces, empty, empty, kind="body") for o in self.obstacles]
+
     def _emit(self, sinks, index, steps):
         if sinks:
-            frame = Frame(index, self.t, self.positions(), steps)
+            positions = self.positions() | {o.name: o.vertices for o in self.obstacles}
+            frame = Frame(index, self.t, positions, steps)
             for s in sinks:
                 s.write(frame)

@@ -66,14 +66,15 @@ def test_rerun_round_trip(tmp_path):
         np.testing.assert_array_equal(got[m.name], want)
         np.testing.assert_array_equal(faces[m.name], m.faces)
 
-    # Stats: one scalar per frame; newton iterations summed over the frame's 2 steps.
+    # Stats: one row per step, on the frame, step and sim_time timelines.
     # (The batcher may split rows over several chunks, so gather them all.)
     rows = {}
     for c in RrdReader(path).stream():
         if c.entity_path == "/stats/newton_iterations":
             b = c.to_record_batch()
-            rows.update(zip(b.column("frame").to_pylist(), b.column("Scalars:scalars").to_pylist()))
-    assert rows == {k: [7.0] for k in range(N_FRAMES)}
+            rows.update(zip(zip(b.column("frame").to_pylist(), b.column("step").to_pylist()),
+                            b.column("Scalars:scalars").to_pylist()))
+    assert rows == {(k, 2 * k + s): [3.0 + s] for k in range(N_FRAMES) for s in range(2)}
 
 
 def test_vertex_normals_flat_grid():

@@ -36,12 +36,16 @@ def _write_obj(path: Path, verts, faces, uv, time: float, frame: int) -> None:
     with open(path, "w") as f:
         f.write(f"# frame {frame} time {time!r} s\n")
         np.savetxt(f, verts, fmt="v %.17g %.17g %.17g")
-        np.savetxt(f, uv, fmt="vt %.17g %.17g")
-        np.savetxt(f, np.repeat(faces + 1, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+        if len(uv):
+            np.savetxt(f, uv, fmt="vt %.17g %.17g")
+            np.savetxt(f, np.repeat(faces + 1, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+        else:  # bodies carry no parameters
+            np.savetxt(f, faces + 1, fmt="f %d %d %d")
 
 
 def _write_ply(path: Path, verts, faces, uv, time: float, frame: int) -> None:
-    mesh = meshio.Mesh(verts, [("triangle", faces)], point_data={"s": uv[:, 0].copy(), "t": uv[:, 1].copy()})
+    point_data = {"s": uv[:, 0].copy(), "t": uv[:, 1].copy()} if len(uv) else {}
+    mesh = meshio.Mesh(verts, [("triangle", faces)], point_data=point_data)
     meshio.write(path, mesh, file_format="ply", binary=True)
 
 
@@ -49,8 +53,8 @@ _WRITERS = {"npz": _write_npz, "obj": _write_obj, "ply": _write_ply}
 
 
 class MeshExportSink:
-    """Sink writing every cloth piece of every frame to `directory` in format `fmt`
-    (`npz`, `obj` or `ply`; see the module docstring for the file contents)."""
+    """Sink writing every mesh (cloth pieces and bodies) of every frame to `directory` in
+    format `fmt` (`npz`, `obj` or `ply`; see the module docstring for the file contents)."""
 
     def __init__(self, directory: str | os.PathLike, fmt: str = "npz"):
         if fmt not in _WRITERS:

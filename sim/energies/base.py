@@ -16,6 +16,9 @@ from ..assembly import BlockPattern
 class Energy:
     #: True when the Hessian does not depend on C (it is then assembled once per pattern).
     constant_hessian: bool = False
+    #: True when the Hessian's pattern changes with C (contact): it is then returned by
+    #: `hessian_matrix` as a sparse matrix on all control-point DOFs instead.
+    variable_pattern: bool = False
 
     def stencils(self) -> list[np.ndarray]:
         """Control-point stencils (Q, K) whose pairs the Hessian pattern must hold."""
@@ -33,3 +36,11 @@ class Energy:
     def add_hessian(self, C: np.ndarray, data: np.ndarray, project: bool = True) -> None:
         """Add the (PSD-projected when `project`) Hessian into pattern data."""
         raise NotImplementedError
+
+    def hessian_matrix(self, C: np.ndarray, project: bool = True):
+        """Variable-pattern energies: the (3 n_cp)^2 scipy Hessian, or None when zero."""
+        return None
+
+    def max_step(self, C0: np.ndarray, C1: np.ndarray) -> float:
+        """Largest fraction of the step C0 -> C1 this energy allows (CCD for contact)."""
+        return 1.0

@@ -1,0 +1,121 @@
+"""Least-squares quadratic B-spline fits of the four sides (DESIGN.md section 4b.2).
+
+A side is the outline polyline from one corner to the next. It is sampled densely (every
+polyline vertex plus points in between, each weighted by the arc length it stands for),
+given chord-length parameters u_a = (n - 2) s_a / L, and fitted by n control points with the
+end points pinned to the corners and a second-difference penalty against zig-zags:
+
+    min_C  sum_a (w_a / L) |C(u_a) - P_a|^2  +  lam / (n - 2) sum_i |C_i-1 - 2 C_i + C_i+1|^2
+
+Both terms are mean squares in m^2, so `lam` means the same on every side and at every
+resolution; on a smooth curve |second difference| ~ h^2 / R is tiny and the penalty only
+matters where the data leave control points undetermined (spans shorter than the input
+edges).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.bspline import basis_matrix
+
+LAMBDA = 1e-4
+
+
+@dataclass
+class SideSamples:
+    """Dense samples of one side: points (K, 2), arc length s (K,) from the start corner,
+    weights w (K,) (arc length each sample stands for, m), total length L (m)."""
+
+    points: np.ndarray
+    s: np.ndarray
+    w: np.ndarray
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+    def parameters(self, n: int) -> np.ndarray:
+        """Chord-length parameters in [0, n - 2]."""
+        return (n - 2) * self.s / self.length
+
+
+def sample_polyline(poly: np.ndarray, spacing: float) -> SideSamples:
+    """Polyline vertices plus evenly spaced points so no gap exceeds `spacing`."""
+    seg = np.diff(poly, axis=0)
+    lens = np.linalg.norm(seg, axis=1)
+    pts, s = [poly[:1]], [np.zeros(1)]
+    s0 = 0.0
+    for k in range(seg.shape[0]):
+        count = max(int(np.ceil(lens[k] / spacing)), 1)
+        t = np.arange(1, count + 1) / count
+        pts.append(poly[k] + t[:, None] * seg[k])
+        s.append(s0 + t * lens[k])
+        s0 += lens[k]
+    P, S = np.concatenate(pts), np.concatenate(s)
+    gaps = np.diff(S)
+    w = np.zeros_like(S)
+    w[:-1] += 0.5 * gaps
+    w[1:] += 0.5 * gaps
+    return SideSamples(points=P, s=S, w=w)
+
+
+def second_difference(n: int) -> np.ndarray:
+    """(n - 2, n) matrix of C_i-1 - 2 C_i + C_i+1."""
+    D = np.zeros((n - 2, n))
+    i = np.arange(n - 2)
+    D[i, i], D[i, i + 1], D[i, i + 2] = 1.0, -2.0, 1.0
+    return D
+
+
+def fit_side(side: SideSamples, n: int, lam: float = LAMBDA) -> np.ndarray:
+    """Control points (n, 2) of the regularised least-squares fit, ends pinned."""
+    if n < 3:
+        raise ValueError("a quadratic side needs at least 3 control points")
+    u = side.parameters(n)
+    N = basis_matrix(u, n)
+    L = side.length
+    W = side.w / L
+    D = second_difference(n) * np.sqrt(lam / (n - 2))
+    A = N.T @ (W[:, None] * N) + D.T @ D
+    b = N.T @ (W[:, None] * side.points)
+    C = np.empty((n, 2))
+    C[0], C[-1] = side.points[0], side.points[-1]
+    free = slice(1, n - 1)
+    rhs = b[free] - A[free][:, [0, n - 1]] @ C[[0, n - 1]]
+    C[free] = np.linalg.solve(A[free, free], rhs)
+    return C
+
+
+def evaluate(ctrl: np.ndarray, u: np.ndarray, derivative: int = 0) -> np.ndarray:
+    """Curve points (or derivatives) at parameters u."""
+    return basis_matrix(np.asarray(u, float), ctrl.shape[0], derivative) @ ctrl
+
+
+def project(ctrl: np.ndarray, points: np.ndarray, u0: np.ndarray | None = None,
+            samples_per_span: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Closest parameters u (P,) on the curve to points (P, 2) and the distances (P,).
+
+    Starts from the nearest of a dense sampling (or from u0) and polishes with Newton."""
+    n = ctrl.shape[0]
+    points = np.atleast_2d(np.asarray(points, float))
+    if u0 is None:
+        grid = np.linspace(0.0, n - 2.0, samples_per_span * (n - 2) + 1)
+        G = evaluate(ctrl, grid)
+        d2 = ((points[:, None, :] - G[None, :, :]) ** 2).sum(-1)
+        u = grid[np.argmin(d2, axis=1)]
+    else:
+        u = np.asarray(u0, float).copy()
+    for _ in range(8):
+        p = evaluate(ctrl, u)
+        dp = evaluate(ctrl, u, 1)
+        ddp = evaluate(ctrl, u, 2)
+        r = p - points
+        g = (r * dp).sum(1)
+        H = (dp * dp).sum(1) + (r * ddp).sum(1)
+        step = np.where(H > 1e-300, -g / np.where(H > 1e-300, H, 1.0), 0.0)
+        u = np.clip(u + step, 0.0, n - 2.0)
+    dist = np.linalg.norm(evaluate(ctrl, u) - points, axis=1)
+    return u, dist

@@ -1,0 +1,391 @@
+"""MIPS refinement of the rest control net (DESIGN.md section 4b.4).
+
+Minimises, over the control points X (n, m, 2) of the rest map X(u, v),
+
+    E(X) = sum_q w_q f(J_q) / sum_q w_q  +  w_b E_fit(X),
+    f(J) = (|J|_F^2 / det J)^2 = |J|^2 |J^-1|^2,
+
+with J = dX/du diag(1/a, 1/b) the Jacobian at the quadrature points (3 x 3 Gauss per knot
+span) scaled by the mean span sizes a, b along u and v, so that a uniform grid of square
+cells scores the minimum 4 whatever the panel's size and control counts. E_fit is the
+side fits' least-squares objective (curve_fit) over the boundary rows divided by the squared
+span size: the boundary may slide a little to relax the interior but stays on the outline.
+The four corners are fixed.
+
+Projected Newton: per-point 4 x 4 Hessians in (X_u, X_v) projected to PSD, assembled
+through fixed 9-point stencils, CHOLMOD; the line search starts at the largest step that
+keeps det J > 0 at every guard point (the points of every simulator rule: reduced, 2 x 2
+and 3 x 3 Gauss, plus the knots; det along a Newton ray is a quadratic in the step) and
+backtracks for Armijo.
+
+A start with inverted points is first untangled with Garanzha et al.'s regularisation
+("Foldover-free maps in 50 lines of code", 2021): det J in the denominator becomes
+chi(d, eps) = (d + sqrt(d^2 + eps^2)) / 2 > 0 over the guard points, with eps shrinking
+until every guard determinant is positive; then the exact barrier takes over.
+"""
+
+from __future__ import annotations
+
+import time
+from functools import lru_cache
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from sim.bspline import eval_1d_many
+from sim.linsolve import CholeskySolver
+from sim.quadrature import Rule, gauss, reduced_membrane
+
+POWER = 2.0  # f = (|J|^2 / det)^POWER; 2 is |J|^2 |J^-1|^2 of the paper
+
+
+class PointSet:
+    """Sparse maps from a net's control points to X_u and X_v at parameter points.
+
+    idx (Q, K) flat control-point indices i * m + j of each point's stencil; du, dv (Q, K)
+    the derivatives of the basis functions there (0 on padding).
+    """
+
+    def __init__(self, n: int, m: int, u: np.ndarray, v: np.ndarray, w: np.ndarray | None = None):
+        self.n, self.m = n, m
+        self.u, self.v = np.ascontiguousarray(u, float), np.ascontiguousarray(v, float)
+        self.w = np.ones_like(self.u) if w is None else np.asarray(w, float)
+        fu, Nu, dNu, _ = eval_1d_many(self.u, n)
+        fv, Nv, dNv, _ = eval_1d_many(self.v, m)
+        width = 4 if (np.any(Nu[:, 3] != 0) or np.any(dNu[:, 3] != 0) or np.any(Nv[:, 3] != 0)
+                      or np.any(dNv[:, 3] != 0)) else 3
+        a, b = np.meshgrid(np.arange(width), np.arange(width), indexing="ij")
+        a, b = a.ravel(), b.ravel()
+        I, J = fu[:, None] + a, fv[:, None] + b
+        ok = (I < n) & (J < m)
+        self.idx = np.where(ok, np.minimum(I, n - 1) * m + np.minimum(J, m - 1), 0)
+        self.du = np.where(ok, dNu[:, a] * Nv[:, b], 0.0)
+        self.dv = np.where(ok, Nu[:, a] * dNv[:, b], 0.0)
+        rows = np.repeat(np.arange(self.u.size), a.size)
+        shape = (self.u.size, n * m)
+        self.Du = sp.csr_matrix((self.du.ravel(), (rows, self.idx.ravel())), shape=shape)
+        self.Dv = sp.csr_matrix((self.dv.ravel(), (rows, self.idx.ravel())), shape=shape)
+
+    def __len__(self) -> int:
+        return self.u.size
+
+    def jacobians(self, X2: np.ndarray) -> np.ndarray:
+        """(Q, 4) = (X_u.x, X_u.y, X_v.x, X_v.y) for the net X2 (n*m, 2)."""
+        return np.concatenate([self.Du @ X2, self.Dv @ X2], axis=1)
+
+
+def det(Y: np.ndarray) -> np.ndarray:
+    return Y[:, 0] * Y[:, 3] - Y[:, 1] * Y[:, 2]
+
+
+@lru_cache(maxsize=8)
+def guard_points(n: int, m: int) -> PointSet:
+    """Every point where a simulator rule evaluates the rest Jacobian, plus the knots."""
+    rules = [gauss(n, m, 2), gauss(n, m, 3)]
+    if n >= 5 and m >= 5:
+        rules.append(reduced_membrane(n, m))
+    ku, kv = np.meshgrid(np.arange(n - 1.0), np.arange(m - 1.0), indexing="ij")
+    rules.append(Rule(ku.ravel(), kv.ravel(), np.zeros(ku.size)))
+    u = np.concatenate([r.u for r in rules])
+    v = np.concatenate([r.v for r in rules])
+    return PointSet(n, m, u, v)
+
+
+@lru_cache(maxsize=8)
+def energy_points(n: int, m: int) -> PointSet:
+    r = gauss(n, m, 3)
+    return PointSet(n, m, r.u, r.v, r.w)
+
+
+@dataclass
+class BoundaryFit:
+    """Quadratic boundary term E_fit(X) = sum_d (X_d^T H X_d - 2 b_d^T X_d + c) / h^2 over
+    the flat net X (n*m, 2): H (n*m, n*m) sparse, b (n*m, 2), c scalar, h metres."""
+
+    H: sp.csr_matrix
+    b: np.ndarray
+    c: float
+    h: float
+
+    def value(self, X2):
+        return float(((self.H @ X2) * X2).sum() - 2.0 * (self.b * X2).sum() + self.c) / self.h**2
+
+    def gradient(self, X2):
+        return 2.0 * (self.H @ X2 - self.b) / self.h**2
+
+
+@dataclass
+class MipsOptions:
+    w_boundary: float = 1e3  # weight of E_fit; inf fixes the boundary rows
+    max_iterations: int = 60
+    tolerance: float = 1e-7  # stop when the Newton decrement / 2 < tolerance * E
+    untangle_iterations: int = 100
+    area_weight: float = 1.0  # weight of the area term d / d0 + d0 / d (d0: mean det)
+
+
+@dataclass
+class MipsResult:
+    X: np.ndarray
+    iterations: int
+    untangle_iterations: int
+    energy: float
+    min_det_ratio: float  # min det / mean det over the guard points
+    converged: bool
+    seconds: float
+    history: list = field(default_factory=list)
+
+
+def _chi(d, eps):
+    """(d + sqrt(d^2 + eps^2)) / 2, without cancellation for d < 0."""
+    r = np.sqrt(d**2 + eps**2)
+    return np.where(d >= 0, 0.5 * (d + r), 0.5 * eps**2 / (r - d))
+
+
+def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True):
+    """f, df/dY (Q, 4) and projected d2f/dY2 (Q, 4, 4) of
+    f = (|y|^2 / c)^POWER + area_weight (c / d0 + d0 / c), y = Y * scale, c = chi(det y, eps)
+    (c = det y when eps == 0)."""
+    p = POWER
+    y = Y * scale
+    A = (y**2).sum(1)
+    d = det(y)
+    if eps > 0:
+        r = np.sqrt(d**2 + eps**2)
+        c, c1, c2 = _chi(d, eps), 0.5 * (1.0 + d / r), 0.5 * eps**2 / r**3
+    else:
+        c, c1, c2 = d, np.ones_like(d), np.zeros_like(d)
+    q = A / c
+    f = q**p + area_weight * (c / d0 + d0 / c)
+    gA = p * q ** (p - 1) / c
+    gc = -p * q**p / c + area_weight * (1.0 / d0 - d0 / c**2)
+    grad_d = np.stack([y[:, 3], -y[:, 2], -y[:, 1], y[:, 0]], axis=1)
+    g = (2.0 * gA)[:, None] * y + (gc * c1)[:, None] * grad_d
+    if not hessian:
+        return f, g * scale, None
+    gAA = p * (p - 1) * q ** (p - 2) / c**2
+    gAc = -p * p * q ** (p - 1) / c**2
+    gcc = p * (p + 1) * q**p / c**2 + 2.0 * area_weight * d0 / c**3
+    H = (4.0 * gAA)[:, None, None] * y[:, :, None] * y[:, None, :]
+    cross = y[:, :, None] * grad_d[:, None, :]
+    H += (2.0 * gAc * c1)[:, None, None] * (cross + cross.transpose(0, 2, 1))
+    H += (gcc * c1**2 + gc * c2)[:, None, None] * grad_d[:, :, None] * grad_d[:, None, :]
+    H += (2.0 * gA)[:, None, None] * np.eye(4)
+    D2 = np.zeros((4, 4))
+    D2[0, 3] = D2[3, 0] = 1.0
+    D2[1, 2] = D2[2, 1] = -1.0
+    H += (gc * c1)[:, None, None] * D2
+    lam, V = np.linalg.eigh(H)
+    H = np.einsum("qij,qj,qkj->qik", V, np.maximum(lam, 0.0), V)
+    S = scale
+    return f, g * S, H * S[None, :, None] * S[None, None, :]
+
+
+class _Assembler:
+    """Sums per-point 4 x 4 Hessians in (X_u, X_v) into the sparse (2 n m)^2 matrix
+    (interleaved x, y) through a pattern of 2 x 2 control-point blocks built once."""
+
+    def __init__(self, pts: PointSet):
+        Q, K = pts.idx.shape
+        nm = pts.n * pts.m
+        key = (pts.idx[:, :, None].astype(np.int64) * nm + pts.idx[:, None, :]).ravel()
+        uniq, self.slot = np.unique(key, return_inverse=True)
+        self.n_blocks = uniq.size
+        br, bc = np.divmod(uniq, nm)
+        # Block (br, bc) entry (d, e) sits at row 2 br + d, column 2 bc + e.
+        rows = (2 * br[:, None, None] + np.arange(2)[None, :, None]).repeat(2, axis=2).ravel()
+        cols = (2 * bc[:, None, None] + np.arange(2)[None, None, :]).repeat(2, axis=1).ravel()
+        N = 2 * nm
+        pattern = sp.csr_matrix((np.arange(1, rows.size + 1, dtype=float), (rows, cols)), shape=(N, N))
+        self.indptr, self.indices, self.shape = pattern.indptr, pattern.indices, (N, N)
+        self.order = (pattern.data - 1).astype(np.int64)  # csr position -> (block, d, e) flat
+        self.D = np.stack([pts.du, pts.dv], axis=1)  # (Q, 2, K): derivative of N_a along u, v
+
+    def matrix(self, Hq: np.ndarray) -> sp.csr_matrix:
+        # Hq (Q, 4, 4) over y = (u.x, u.y, v.x, v.y) = index 2 alpha + d.
+        H5 = Hq.reshape(-1, 2, 2, 2, 2)  # (Q, alpha, d, beta, e)
+        local = np.einsum("qia,qidje,qjb->qabde", self.D, H5, self.D, optimize=True)  # (Q, K, K, 2, 2)
+        local = local.reshape(-1, 4)
+        data = np.empty((self.n_blocks, 4))
+        for c in range(4):
+            data[:, c] = np.bincount(self.slot, weights=local[:, c], minlength=self.n_blocks)
+        return sp.csr_matrix((data.ravel()[self.order], self.indices, self.indptr), shape=self.shape)
+
+
+class MipsProblem:
+    """The energy of one net size, with its point sets and assembly pattern."""
+
+    def __init__(self, n: int, m: int, scale: tuple[float, float], boundary: BoundaryFit | None,
+                 fixed: np.ndarray, options: MipsOptions):
+        self.n, self.m = n, m
+        self.scale = np.array([1 / scale[0], 1 / scale[0], 1 / scale[1], 1 / scale[1]])
+        self.pts = energy_points(n, m)
+        self.guard = guard_points(n, m)
+        self.W = float(self.pts.w.sum())
+        self.boundary = boundary
+        self.options = options
+        self.fixed = fixed  # (n*m*2,) bool
+        self.free = np.nonzero(~fixed)[0]
+        self._asm = {}
+        self._solver = None
+        self.d0 = 1.0
+
+    def _energy(self, X2, pts, w, eps, hessian):
+        Y = pts.jacobians(X2)
+        f, g, H = _point_terms(Y, self.scale, eps, self.options.area_weight, self.d0, hessian)
+        E = float(w @ f) / self.W
+        gY = g * (w / self.W)[:, None]
+        grad = np.stack([pts.Du.T @ gY[:, 0] + pts.Dv.T @ gY[:, 2],
+                         pts.Du.T @ gY[:, 1] + pts.Dv.T @ gY[:, 3]], axis=1)
+        Hs = None
+        if hessian:
+            key = id(pts)
+            if key not in self._asm:
+                self._asm[key] = _Assembler(pts)
+            Hs = self._asm[key].matrix(H * (w / self.W)[:, None, None])
+        if self.boundary is not None and np.isfinite(self.options.w_boundary):
+            wb = self.options.w_boundary
+            E += wb * self.boundary.value(X2)
+            grad = grad + wb * self.boundary.gradient(X2)
+            if hessian:
+                Hb = sp.kron(self.boundary.H, sp.eye(2), format="csr") * (2.0 * wb / self.boundary.h**2)
+                Hs = Hs + Hb
+        return E, grad, Hs
+
+    def value(self, X2, eps=0.0, untangle=False):
+        pts = self.guard if untangle else self.pts
+        w = self._guard_w if untangle else pts.w
+        return self._energy(X2, pts, w, eps, False)[0]
+
+    def newton(self, X2, eps=0.0, untangle=False):
+        pts = self.guard if untangle else self.pts
+        w = self._guard_w if untangle else pts.w
+        E, g, H = self._energy(X2, pts, w, eps, True)
+        gz = g.ravel()[self.free]
+        Hff = H[self.free][:, self.free]
+        Hff = Hff + sp.eye(Hff.shape[0]) * (1e-10 * float(Hff.diagonal().mean()))
+        lower = sp.tril(Hff, format="csc")
+        if self._solver is None or untangle != self._solver_mode:
+            self._solver = CholeskySolver(lower)
+            self._solver_mode = untangle
+        self._solver.factorize(lower)
+        dz = -self._solver.solve(gz)
+        d = np.zeros(2 * self.n * self.m)
+        d[self.free] = dz
+        return E, -float(gz @ dz), d.reshape(-1, 2)
+
+    @property
+    def _guard_w(self):
+        if not hasattr(self, "_gw"):
+            # Uniform weights per point summing to the parametric area.
+            self._gw = np.full(len(self.guard), self.W / len(self.guard))
+        return self._gw
+
+    def guard_det(self, X2):
+        return det(self.guard.jacobians(X2) * self.scale)
+
+    def max_step(self, X2, D2) -> float:
+        """Largest alpha <= 1 such that det J stays positive at all guard points along X + alpha D."""
+        Y = self.guard.jacobians(X2) * self.scale
+        dY = self.guard.jacobians(D2) * self.scale
+        c0 = det(Y)
+        c2 = det(dY)
+        c1 = Y[:, 0] * dY[:, 3] + dY[:, 0] * Y[:, 3] - Y[:, 1] * dY[:, 2] - dY[:, 1] * Y[:, 2]
+        # Smallest positive root of c0 + c1 a + c2 a^2 (c0 > 0), in the stable form.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            disc = c1**2 - 4.0 * c2 * c0
+            q = -0.5 * (c1 + np.copysign(np.sqrt(np.maximum(disc, 0.0)), c1))
+            r1, r2 = q / c2, c0 / q
+            r1 = np.where((disc >= 0) & (r1 > 0), r1, np.inf)
+            r2 = np.where((disc >= 0) & (r2 > 0), r2, np.inf)
+        alpha = np.minimum(r1, r2)
+        return float(min(alpha.min(), np.inf))
+
+
+def _untangle(prob: "MipsProblem", X2, on_guard: bool, options: MipsOptions, history):
+    """Newton steps on the eps-regularised energy with Garanzha et al.'s eps update:
+    mu = (1 - sigma) chi(D-, eps), eps = 2 sqrt(mu (mu - D-)) where D- is the smallest
+    determinant and sigma = max(1 - E_k / E_k-1, 0.1)."""
+    def min_det(X):
+        return float((prob.guard_det(X) if on_guard else det(prob.pts.jacobians(X) * prob.scale)).min())
+
+    D = min_det(X2)
+    mu = 0.1 * prob.d0
+    eps = 2.0 * np.sqrt(mu * (mu - D)) if D < mu else 1e-8 * prob.d0
+    its = 0
+    for its in range(1, options.untangle_iterations + 1):
+        E, dec, D2 = prob.newton(X2, eps, untangle=on_guard)
+        alpha = 1.0
+        for _ in range(30):
+            E_new = prob.value(X2 + alpha * D2, eps, untangle=on_guard)
+            if E_new <= E - 1e-4 * alpha * dec:
+                break
+            alpha *= 0.5
+        X2 = X2 + alpha * D2
+        D = min_det(X2)
+        history.append(("untangle", eps, D))
+        if D > 0:
+            break
+        sigma = min(max(1.0 - E_new / E, 0.1), 0.5)  # capped: a big first drop must not zero eps
+        mu = (1.0 - sigma) * _chi(D, eps)
+        eps = 2.0 * np.sqrt(mu * (mu - D)) if D < mu else 1e-8 * prob.d0
+    return X2, its
+
+
+def refine(X: np.ndarray, scale, boundary: BoundaryFit | None, fixed_points: np.ndarray,
+           options: MipsOptions | None = None) -> MipsResult:
+    """MIPS-refine the net X (n, m, 2); fixed_points (n, m) bool marks control points that
+    never move (the corners, or the whole boundary when w_boundary is inf)."""
+    options = options or MipsOptions()
+    start = time.perf_counter()
+    n, m = X.shape[:2]
+    fixed = np.repeat(np.asarray(fixed_points, bool).reshape(-1), 2)
+    prob = MipsProblem(n, m, scale, boundary, fixed, options)
+    X2 = X.reshape(-1, 2).copy()
+    history = []
+    dq = det(prob.pts.jacobians(X2) * prob.scale)
+    prob.d0 = float(abs(prob.pts.w @ dq) / prob.W)  # the boundary fixes the total area
+
+    # 1. Untangle (only if some guard determinant is not positive): first on the energy
+    # points, then on all guard points if some of those are still inverted.
+    untangle_it = 0
+    for untangle_set in ("energy", "guard"):
+        d = prob.guard_det(X2)
+        if d.min() > 0:
+            break
+        X2, its = _untangle(prob, X2, untangle_set == "guard", options, history)
+        untangle_it += its
+    d = prob.guard_det(X2)
+    if d.min() <= 0:
+        return MipsResult(X2.reshape(n, m, 2), 0, untangle_it, np.inf,
+                          float(d.min() / abs(d).mean()), False, time.perf_counter() - start, history)
+
+    # 2. MIPS with the exact barrier.
+    converged = False
+    it = 0
+    E = prob.value(X2)
+    for it in range(1, options.max_iterations + 1):
+        E, dec, D2 = prob.newton(X2)
+        history.append(("mips", E, dec))
+        if dec / 2 < options.tolerance * E:
+            converged = True
+            break
+        alpha = min(1.0, 0.9 * prob.max_step(X2, D2))
+        accepted = False
+        for _ in range(40):
+            E_new = prob.value(X2 + alpha * D2)
+            if E_new <= E - 1e-4 * alpha * dec:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            converged = True  # no decrease possible at round-off level
+            break
+        X2 = X2 + alpha * D2
+        if (E - E_new) < 1e-10 * E:
+            E = E_new
+            converged = True
+            break
+    d = prob.guard_det(X2)
+    return MipsResult(X2.reshape(n, m, 2), it, untangle_it, prob.value(X2), float(d.min() / d.mean()),
+                      converged, time.perf_counter() - start, history)

@@ -1,0 +1,273 @@
+"""One panel -> one quadratic B-spline patch: the whole conforming pipeline.
+
+    outline (boundary.py) -> corners (corners.py) -> side fits (curve_fit.py)
+    -> boundary rows + tangential interior start (control_net.py) -> MIPS (mips.py)
+    -> optional knot insertion + MIPS again -> lift to 3D (lift.py) -> report (quality.py)
+
+Control counts: opposite sides share a count, from the longer of the two and the target
+knot span (or given). When a side's fit misses the tolerance - max(1 mm, 0.5 % of the
+panel diameter) - the pair's count grows by a quarter and the sides are refitted, up to
+`adapt_rounds` times (not with given counts).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from garment.model import SIDES, Panel, PanelSeam, Patch, PatchSet
+
+from . import corners as corners_mod
+from .boundary import Outline, PanelError, extract_outline
+from .control_net import assemble_boundary, refine, tangential_start
+from .curve_fit import LAMBDA, SideSamples, basis_matrix, fit_side, sample_polyline, second_difference
+from .lift import lift
+from .mips import BoundaryFit, MipsOptions
+from .mips import refine as mips_refine
+from .quality import polyline_distance, report
+
+
+@dataclass
+class ConformOptions:
+    """knot_span: target knot-span size, metres (ignored with control_points);
+    control_points: (n, m) counts along u and v; corners: 4 source vertex ids or 4 (x, y)
+    rest positions (None: automatic); tolerance: boundary fit tolerance, metres (None:
+    max(1 mm, 0.5 % of the diameter)); refine: knot-insertion levels after the first MIPS
+    (each halves the knot spans); lam: side-fit smoothing; mips: solver settings."""
+
+    knot_span: float = 0.02
+    control_points: tuple[int, int] | None = None
+    corners: list | None = None
+    tolerance: float | None = None
+    refine: int = 0
+    adapt_rounds: int = 4
+    lam: float = LAMBDA
+    mips: MipsOptions = field(default_factory=MipsOptions)
+
+
+@dataclass
+class Sides:
+    """The four sides of an outline split at corners (loop positions c0..c3)."""
+
+    corners: np.ndarray
+    polylines: list[np.ndarray]
+    positions: list[np.ndarray]  # loop positions of each side's points, corner to corner
+
+    @property
+    def lengths(self) -> np.ndarray:
+        return np.array([np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in self.polylines])
+
+
+def split_sides(outline: Outline, corners: np.ndarray) -> Sides:
+    B = len(outline)
+    polys, pos = [], []
+    for k in range(4):
+        a, b = int(corners[k]), int(corners[(k + 1) % 4])
+        idx = np.arange(a, a + (b - a) % B + 1) % B
+        pos.append(idx)
+        polys.append(outline.points[idx])
+    return Sides(np.asarray(corners), polys, pos)
+
+
+def tolerance_for(outline: Outline, options: ConformOptions) -> float:
+    if options.tolerance is not None:
+        return options.tolerance
+    return max(1e-3, 0.005 * outline.diameter)
+
+
+def side_error(poly: np.ndarray, ctrl: np.ndarray) -> float:
+    """Two-sided distance between a side polyline and its fitted curve, metres."""
+    from .curve_fit import evaluate
+
+    n = ctrl.shape[0]
+    curve = evaluate(ctrl, np.linspace(0.0, n - 2.0, 24 * (n - 2) + 1))
+    mid = 0.5 * (poly[1:] + poly[:-1])
+    a = polyline_distance(np.vstack([poly, mid]), curve, closed=False)
+    b = polyline_distance(curve, poly, closed=False)
+    return float(max(a.max(), b.max()))
+
+
+def counts_for(sides: Sides, options: ConformOptions) -> tuple[int, int]:
+    if options.control_points is not None:
+        n, m = options.control_points
+        return int(n), int(m)
+    L = sides.lengths
+    h = options.knot_span
+    n = max(5, int(np.ceil(max(L[0], L[2]) / h)) + 2)
+    m = max(5, int(np.ceil(max(L[1], L[3]) / h)) + 2)
+    return n, m
+
+
+def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float):
+    samples = [sample_polyline(p, spacing) for p in sides.polylines]
+    counts = (n, m, n, m)
+    ctrls = [fit_side(s, c, lam) for s, c in zip(samples, counts)]
+    errors = [side_error(p, c) for p, c in zip(sides.polylines, ctrls)]
+    return samples, ctrls, np.asarray(errors)
+
+
+def boundary_term(samples: list[SideSamples], n: int, m: int, lam: float, h: float) -> BoundaryFit:
+    """The side fits' objective on the boundary rows of an (n, m) net."""
+    idx = np.arange(n * m).reshape(n, m)
+    rows = [idx[:, 0], idx[-1, :], idx[::-1, -1], idx[0, ::-1]]
+    H = sp.csr_matrix((n * m, n * m))
+    b = np.zeros((n * m, 2))
+    c = 0.0
+    for side, row in zip(samples, rows):
+        k = row.shape[0]
+        N = basis_matrix(side.parameters(k), k)
+        W = side.w / side.length
+        D = second_difference(k) * np.sqrt(lam / (k - 2))
+        A = N.T @ (W[:, None] * N) + D.T @ D
+        r, cc = np.meshgrid(row, row, indexing="ij")
+        H = H + sp.csr_matrix((A.ravel(), (r.ravel(), cc.ravel())), shape=(n * m, n * m))
+        b[row] += N.T @ (W[:, None] * side.points)
+        c += float((W * (side.points**2).sum(1)).sum())
+    return BoundaryFit(H.tocsr(), b, c, h)
+
+
+def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(), avoid=()) -> tuple[Patch, dict]:
+    """Conform one panel. hints: rest positions (P, 2) preferred as corners (seam ends);
+    avoid: rest positions never made corners (points on darts). Returns the patch and its
+    report (quality numbers and provenance)."""
+    options = options or ConformOptions()
+    start = time.perf_counter()
+    outline = extract_outline(panel)
+    tol = tolerance_for(outline, options)
+
+    # Corners.
+    if options.corners is not None:
+        c = corners_mod.corners_from_user(panel, outline, options.corners)
+    else:
+        pos_of = {int(v): k for k, v in enumerate(outline.vertices)}
+        near = float(np.diff(outline.s).max())  # seam points lie on the outline
+        own = [pos_of[int(h)] for h in panel.corner_hints if int(h) in pos_of]
+        seam_ends = list(corners_mod.loop_positions(outline, hints, near))
+        avoid_pos = corners_mod.loop_positions(outline, avoid, near)
+        c = corners_mod.pick_corners(outline, own + seam_ends, hints_only=panel.faces is None and len(own) >= 4,
+                                     avoid=avoid_pos)
+    sides = split_sides(outline, c)
+    if np.any(sides.lengths <= 0) or any(len(p) < 2 for p in sides.polylines):
+        raise PanelError(panel, "two corners coincide")
+
+    # Side fits, growing the counts where the fit misses the tolerance.
+    n, m = counts_for(sides, options)
+    h_target = options.knot_span if options.control_points is None else float(
+        np.mean(sides.lengths) / max(np.mean([n, m]) - 2, 1))
+    spacing = min(h_target, float(np.median(np.diff(outline.s)))) / 4.0
+    samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+    rounds = 0
+    while options.control_points is None and rounds < options.adapt_rounds and errors.max() > 0.8 * tol:
+        rounds += 1
+        if max(errors[0], errors[2]) > 0.8 * tol:
+            n = int(np.ceil(1.25 * (n - 2))) + 2
+        if max(errors[1], errors[3]) > 0.8 * tol:
+            m = int(np.ceil(1.25 * (m - 2))) + 2
+        spacing = min(spacing, 0.25 * min(sides.lengths[[0, 2]].max() / (n - 2),
+                                          sides.lengths[[1, 3]].max() / (m - 2)))
+        samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+
+    # Interior start and MIPS, then knot-insertion levels.
+    X = tangential_start(assemble_boundary(ctrls))
+    t_fit = time.perf_counter() - start
+    solves = []
+    for level in range(options.refine + 1):
+        if level > 0:
+            X = refine(X)
+            n, m = X.shape[:2]
+            spacing = min(spacing, 0.25 * min(sides.lengths) / max(n, m))
+            samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+            X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = ctrls
+        scale = (0.5 * (sides.lengths[0] + sides.lengths[2]) / (n - 2),
+                 0.5 * (sides.lengths[1] + sides.lengths[3]) / (m - 2))
+        fixed = np.zeros((n, m), bool)
+        fixed[[0, 0, -1, -1], [0, -1, 0, -1]] = True
+        if not np.isfinite(options.mips.w_boundary):
+            fixed[0, :] = fixed[-1, :] = fixed[:, 0] = fixed[:, -1] = True
+        bt = boundary_term(samples, n, m, options.lam, float(np.sqrt(scale[0] * scale[1])))
+        res = mips_refine(X, scale, bt, fixed, options.mips)
+        solves.append(res)
+        X = res.X
+        if res.untangle_iterations and res.energy == np.inf:
+            raise PanelError(panel, f"could not untangle the control net ({n} x {m}); try other corners "
+                                    "or a finer knot span")
+
+    world = lift(panel, X)
+    patch = Patch(panel.name, X, world)
+    rep = report(outline, X, tol)
+    rep.update({
+        "seconds": time.perf_counter() - start,
+        "seconds_fit": t_fit,
+        "mips_iterations": sum(r.iterations for r in solves),
+        "untangle_iterations": sum(r.untangle_iterations for r in solves),
+        "mips_converged": all(r.converged for r in solves),
+        "mips_energy": solves[-1].energy,
+        "adapt_rounds": rounds,
+    })
+    rep["status"] = "ok" if rep["inverted_points"] == 0 else "inverted"
+    rep["provenance"] = provenance(panel, outline, sides)
+    return patch, rep
+
+
+def provenance(panel: Panel, outline: Outline, sides: Sides) -> dict:
+    """Where the patch came from: source, panel, corners, and what each side covers."""
+    ids = np.asarray(panel.vertex_ids)
+    corner_vertices = outline.vertices[sides.corners]
+    out = {
+        "source": panel.source,
+        "panel": panel.name,
+        "corner_vertex_ids": [int(ids[v]) for v in corner_vertices] if panel.faces is not None else None,
+        "corner_positions": [[float(x) for x in outline.points[c]] for c in sides.corners],
+        "sides": {},
+    }
+    for name, pos in zip(SIDES, sides.positions):
+        entry = {}
+        if panel.faces is not None:
+            # The input boundary edges are the consecutive pairs of these vertex ids.
+            entry["boundary_vertex_ids"] = [int(ids[outline.vertices[p]]) for p in pos]
+        if panel.segment_edges is not None:
+            seg = panel.segment_edges[outline.vertices[pos[:-1]]]
+            edges = [int(e) for k, e in enumerate(seg) if k == 0 or e != seg[k - 1]]
+            entry["pattern_edges"] = edges
+        out["sides"][name] = entry
+    return out
+
+
+def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOptions | None = None,
+                corners: dict | None = None, on_panel=None) -> PatchSet:
+    """Conform every panel (a failing panel is recorded, the others go on) and map the
+    seams between converted panels to their patches. corners: panel name -> 4 corners
+    (overrides); on_panel(panel, report or None, error or None) after each panel."""
+    import dataclasses
+
+    from .seams import map_seam, seam_hints
+
+    options = options or ConformOptions()
+    corners = corners or {}
+    unknown = set(corners) - {p.name for p in panels}
+    if unknown:
+        from garment.errors import InputError
+
+        raise InputError(f"--corners: no panel named {', '.join(sorted(unknown))}")
+    patches, quality, prov, failures, tol = {}, {}, {}, {}, {}
+    for panel in panels:
+        hints, avoid = seam_hints(panel.name, seams)
+        opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
+        try:
+            patch, rep = conform_panel(panel, opts, hints, avoid)
+        except PanelError as e:
+            failures[panel.name] = str(e)
+            if on_panel:
+                on_panel(panel, None, e)
+            continue
+        prov[panel.name] = rep.pop("provenance")
+        patches[panel.name], quality[panel.name] = patch, rep
+        tol[panel.name] = 2e-3 * rep["tolerance_mm"]  # twice the fit tolerance, metres
+        if on_panel:
+            on_panel(panel, rep, None)
+    mapped = [map_seam(s, patches, tol) for s in seams if s.panel_a in patches and s.panel_b in patches]
+    source = panels[0].source if panels else ""
+    return PatchSet(list(patches.values()), mapped, prov, quality, failures, source)

@@ -1,0 +1,130 @@
+"""The quality report of a conformed patch (DESIGN.md section 4b, "Report per patch").
+
+- boundary fit error: the two-sided (Hausdorff) distance between the input outline and
+  the patch boundary, mm, against the tolerance max(1 mm, 0.5 % of the panel diameter);
+- Jacobian: det dX/du at every guard point (the points of every simulator rule and the
+  knots), as a ratio to its mean: min (> 0 means no inverted point) and max;
+- corner angles: the patch's interior angles at its four corners, degrees;
+- skew: the smallest angle between X_u and X_v over the guard points, degrees;
+  aspect: the largest singular-value ratio of the scaled Jacobian;
+- area: the rest area that the simulator's rules integrate (reduced rule, and 2 x 2 Gauss,
+  which is exact for the patch: det is bicubic per span) against the input's area, %.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sim.quadrature import gauss, reduced_membrane
+from sim.rest import point_data
+
+from .boundary import Outline
+from .curve_fit import evaluate
+from .control_net import side_rows
+from .mips import det, guard_points
+
+
+def polyline_distance(points: np.ndarray, poly: np.ndarray, closed: bool, k: int = 6) -> np.ndarray:
+    """Distance from each point (P, 2) to the polyline through poly (V, 2)."""
+    V = poly.shape[0]
+    _, near = cKDTree(poly).query(points, k=min(k, V))
+    near = near.reshape(points.shape[0], -1)
+    best = np.full(points.shape[0], np.inf)
+    for j in range(near.shape[1]):
+        for step in (-1, 0):  # the segments before and after the vertex
+            a = near[:, j] + step
+            if closed:
+                a = a % V
+            else:
+                a = np.clip(a, 0, V - 2)
+            b = (a + 1) % V
+            A, B = poly[a], poly[b]
+            AB = B - A
+            t = np.clip(((points - A) * AB).sum(1) / np.maximum((AB**2).sum(1), 1e-300), 0.0, 1.0)
+            d = np.linalg.norm(points - (A + t[:, None] * AB), axis=1)
+            best = np.minimum(best, d)
+    return best
+
+
+def boundary_curve(X: np.ndarray, per_span: int = 24) -> np.ndarray:
+    """The patch boundary as a closed polyline, counter-clockwise from corner (0, 0)."""
+    parts = []
+    for row in side_rows(X):
+        nr = row.shape[0]
+        u = np.linspace(0.0, nr - 2.0, per_span * (nr - 2) + 1)[:-1]
+        parts.append(evaluate(row, u))
+    return np.concatenate(parts)
+
+
+def densify(poly: np.ndarray, per_segment: int = 4) -> np.ndarray:
+    """Closed polyline points plus per_segment - 1 points inside every segment."""
+    nxt = np.roll(poly, -1, axis=0)
+    t = np.arange(per_segment) / per_segment
+    return (poly[:, None, :] + t[None, :, None] * (nxt - poly)[:, None, :]).reshape(-1, 2)
+
+
+def boundary_error(outline: Outline, X: np.ndarray) -> tuple[float, float]:
+    """(Hausdorff distance, mean outline-to-patch distance) between outline and patch
+    boundary, metres."""
+    curve = boundary_curve(X)
+    a = polyline_distance(densify(outline.points), curve, closed=True)
+    b = polyline_distance(curve, outline.points, closed=True)
+    return float(max(a.max(), b.max())), float(a.mean())
+
+
+def corner_angles(X: np.ndarray) -> np.ndarray:
+    """Interior angles (degrees) of the patch at corners (0,0), (n-2,0), (n-2,m-2), (0,m-2)."""
+    Xu0 = X[1, :] - X[0, :]  # derivative direction along u at u = 0, per j
+    Xu1 = X[-2, :] - X[-1, :]
+    Xv0 = X[:, 1] - X[:, 0]
+    Xv1 = X[:, -2] - X[:, -1]
+    pairs = [(Xu0[0], Xv0[0]), (Xu1[0], Xv0[-1]), (Xu1[-1], Xv1[-1]), (Xu0[-1], Xv1[0])]
+    out = []
+    for a, b in pairs:
+        c = a @ b / (np.linalg.norm(a) * np.linalg.norm(b))
+        out.append(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    return np.asarray(out)
+
+
+def report(outline: Outline, X: np.ndarray, tolerance: float) -> dict:
+    """Quality numbers of the rest net X (n, m, 2) against its panel's outline."""
+    n, m = X.shape[:2]
+    X2 = X.reshape(-1, 2)
+    guard = guard_points(n, m)
+    Y = guard.jacobians(X2)
+    d = det(Y)
+    ratio = d / d.mean()
+    # Scaled Jacobian for skew and aspect: mean span sizes along u and v.
+    a = np.linalg.norm(np.diff(X, axis=0), axis=-1).sum(0).mean() / (n - 2)
+    b = np.linalg.norm(np.diff(X, axis=1), axis=-1).sum(1).mean() / (m - 2)
+    J = np.stack([Y[:, :2] / a, Y[:, 2:] / b], axis=2)  # columns X_u/a, X_v/b
+    sv = np.linalg.svd(J, compute_uv=False)
+    cosang = (Y[:, :2] * Y[:, 2:]).sum(1) / (np.linalg.norm(Y[:, :2], axis=1) * np.linalg.norm(Y[:, 2:], axis=1))
+    skew = np.degrees(np.arccos(np.clip(np.abs(cosang), 0.0, 1.0)))
+    err, mean_err = boundary_error(outline, X)
+    rep = {
+        "control_points": [n, m],
+        "knot_span_mm": [1e3 * a, 1e3 * b],
+        "boundary_error_mm": 1e3 * err,
+        "boundary_error_mean_mm": 1e3 * mean_err,
+        "tolerance_mm": 1e3 * tolerance,
+        "inverted_points": int((d <= 0).sum()),
+        "min_jacobian_ratio": float(ratio.min()),
+        "max_jacobian_ratio": float(ratio.max()),
+        "min_corner_angle_deg": float(corner_angles(X).min()),
+        "corner_angles_deg": [float(x) for x in corner_angles(X)],
+        "min_skew_angle_deg": float(skew.min()),
+        "max_aspect_ratio": float((sv[:, 0] / np.maximum(sv[:, 1], 1e-300)).max()),
+        "input_area_m2": outline.area,
+    }
+    if rep["inverted_points"] == 0:
+        for name, rule in (("reduced", reduced_membrane(n, m) if min(n, m) >= 5 else None),
+                           ("gauss2", gauss(n, m, 2))):
+            if rule is None:
+                continue
+            area = float(point_data(X, rule).w.sum())
+            rep[f"area_{name}_m2"] = area
+            rep[f"area_error_{name}_pct"] = 100.0 * (area - outline.area) / outline.area
+        rep["area_error_pct"] = rep.get("area_error_reduced_pct", rep["area_error_gauss2_pct"])
+    return rep

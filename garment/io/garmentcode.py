@@ -1,0 +1,191 @@
+"""Read GarmentCode sewing patterns (JSON, maria-korosteleva/GarmentCode) as outline panels.
+
+`pattern.panels[name]`: `vertices` (2D, in 1/`properties.units_in_meter` m: cm), `edges`
+(a closed loop of `endpoints` [i, j], optional `curvature`: `quadratic` / `cubic` Bezier
+with control points relative to the edge - x along it, y along its left normal, both in
+edge lengths - or `circle` [radius, large_arc, right] as in SVG), `translation` (3D) and
+`rotation` (XYZ Euler angles in degrees, applied as Rz Ry Rx: GarmentCode's convention).
+`pattern.stitches`: pairs of {panel, edge}; the two edges are sewn in opposite directions
+(both loops run counter-clockwise, so the start of one meets the end of the other).
+
+Each panel becomes an outline Panel: the edges sampled every `spacing` metres (pattern
+vertices kept exactly, as corner hints), its rigid 3D placement, and its exact area
+(Green's theorem on the curves).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from garment.errors import InputError
+from garment.model import Panel, PanelSeam
+
+_GL_T, _GL_W = np.polynomial.legendre.leggauss(8)
+
+
+def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[PanelSeam]]:
+    """Outline panels (metres) and seams of a GarmentCode pattern file."""
+    path = Path(path)
+    try:
+        spec = json.loads(path.read_text())
+        pattern = spec["pattern"]
+        panels_spec = pattern["panels"]
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except (json.JSONDecodeError, KeyError, TypeError) as e:
+        raise InputError(f"{path}: not a GarmentCode pattern ({e})") from None
+    props = spec.get("properties", {})
+    scale = 1.0 / float(props.get("units_in_meter", 100))
+    if props.get("curvature_coords", "relative") != "relative":
+        raise InputError(f"{path}: properties.curvature_coords: only 'relative' is supported")
+    order = pattern.get("panel_order") or list(panels_spec)
+    panels, curves = [], {}
+    for name in order:
+        where = f"{path}: panel {name}"
+        try:
+            panel, edge_curves = _panel(name, panels_spec[name], scale, spacing, where, str(path))
+        except (KeyError, TypeError, ValueError, IndexError) as e:
+            raise InputError(f"{where}: malformed ({e})") from None
+        panels.append(panel)
+        curves[name] = edge_curves
+    seams = []
+    for s, pair in enumerate(pattern.get("stitches", [])):
+        try:
+            (a, b) = pair
+            ca, cb = curves[a["panel"]][int(a["edge"])], curves[b["panel"]][int(b["edge"])]
+        except (KeyError, IndexError, TypeError, ValueError) as e:
+            raise InputError(f"{path}: pattern.stitches[{s}]: unknown panel or edge ({e})") from None
+        k = max(int(np.ceil(max(ca.length, cb.length) / 0.01)), 2) + 1  # about every cm
+        t = np.linspace(0.0, 1.0, k)
+        seams.append(PanelSeam(
+            name=f"stitch{s}", panel_a=a["panel"], panel_b=b["panel"],
+            points_a=ca.at_length_fraction(t), points_b=cb.at_length_fraction(1.0 - t),
+        ))
+    return panels, seams
+
+
+class _Curve:
+    """One pattern edge in metres: a line, Bezier or circular arc, p(t) for t in [0, 1]."""
+
+    def __init__(self, kind: str, pts: np.ndarray, arc=None):
+        self.kind, self.pts, self.arc = kind, pts, arc
+        t = np.linspace(0.0, 1.0, 257)
+        d = np.linalg.norm(np.diff(self.at(t), axis=0), axis=1)
+        self._t, self._s = t, np.concatenate([[0.0], np.cumsum(d)])
+        self.length = float(self._s[-1])
+
+    def at(self, t) -> np.ndarray:
+        t = np.asarray(t, float)[:, None]
+        p = self.pts
+        if self.kind == "circle":
+            c, r, a0, da = self.arc
+            ang = a0 + da * t[:, 0]
+            return c + r * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+        if len(p) == 2:
+            return (1 - t) * p[0] + t * p[1]
+        if len(p) == 3:
+            return (1 - t) ** 2 * p[0] + 2 * t * (1 - t) * p[1] + t**2 * p[2]
+        return (1 - t) ** 3 * p[0] + 3 * t * (1 - t) ** 2 * p[1] + 3 * t**2 * (1 - t) * p[2] + t**3 * p[3]
+
+    def derivative(self, t) -> np.ndarray:
+        h = 1e-6
+        return (self.at(np.clip(t + h, 0, 1)) - self.at(np.clip(t - h, 0, 1))) / (
+            np.clip(t + h, 0, 1) - np.clip(t - h, 0, 1))[:, None]
+
+    def at_length_fraction(self, f) -> np.ndarray:
+        return self.at(np.interp(np.asarray(f, float) * self.length, self._s, self._t))
+
+    def green(self) -> float:
+        """Integral of (x dy - y dx) / 2 along the curve (exact for polynomial curves)."""
+        t = 0.5 * (_GL_T + 1.0)
+        p, dp = self.at(t), self.derivative(t)
+        if self.kind == "circle":  # not polynomial: use many points
+            t = np.linspace(0.0, 1.0, 2049)
+            p = self.at(t)
+            return 0.5 * float(np.sum(p[:-1, 0] * p[1:, 1] - p[1:, 0] * p[:-1, 1]))
+        return 0.25 * float(np.sum(_GL_W * (p[:, 0] * dp[:, 1] - p[:, 1] * dp[:, 0])))
+
+
+def _rel_to_abs(a, b, rel):
+    e = b - a
+    return a + rel[0] * e + rel[1] * np.array([-e[1], e[0]])
+
+
+def _edge_curve(a, b, curvature, where: str) -> _Curve:
+    if not curvature:
+        return _Curve("line", np.array([a, b]))
+    if isinstance(curvature, (list, tuple)):  # old format: one quadratic control point
+        curvature = {"type": "quadratic", "params": [curvature]}
+    kind, params = curvature["type"], curvature["params"]
+    if kind == "quadratic":
+        return _Curve(kind, np.array([a, _rel_to_abs(a, b, params[0]), b]))
+    if kind == "cubic":
+        return _Curve(kind, np.array([a, _rel_to_abs(a, b, params[0]), _rel_to_abs(a, b, params[1]), b]))
+    if kind == "circle":
+        radius, large, right = float(params[0]), bool(params[1]), bool(params[2])
+        L = float(np.linalg.norm(b - a))
+        h = np.sqrt(max(radius**2 - L**2 / 4.0, 0.0))
+        cy = (radius + h if large else radius - h) / L * (-1.0 if right else 1.0)
+        mid = _rel_to_abs(a, b, [0.5, cy])
+        centre = _circumcentre(a, mid, b)
+        a0 = np.arctan2(*(a - centre)[::-1])
+        am = np.arctan2(*(mid - centre)[::-1])
+        a1 = np.arctan2(*(b - centre)[::-1])
+        # Sweep from a through mid to b.
+        d1 = (am - a0) % (2 * np.pi)
+        d2 = (a1 - a0) % (2 * np.pi)
+        da = d2 if d1 <= d2 else d2 - 2 * np.pi
+        return _Curve(kind, np.array([a, b]), (centre, radius, a0, da))
+    raise InputError(f"{where}: unsupported curvature type {kind!r}")
+
+
+def _circumcentre(a, b, c):
+    d = 2 * (a[0] * (b[1] - c[1]) + b[0] * (c[1] - a[1]) + c[0] * (a[1] - b[1]))
+    ux = ((a @ a) * (b[1] - c[1]) + (b @ b) * (c[1] - a[1]) + (c @ c) * (a[1] - b[1])) / d
+    uy = ((a @ a) * (c[0] - b[0]) + (b @ b) * (a[0] - c[0]) + (c @ c) * (b[0] - a[0])) / d
+    return np.array([ux, uy])
+
+
+def euler_xyz(degrees) -> np.ndarray:
+    """GarmentCode's rotation: R = Rz Ry Rx of XYZ Euler angles in degrees."""
+    x, y, z = np.deg2rad(np.asarray(degrees, float))
+    Rx = np.array([[1, 0, 0], [0, np.cos(x), -np.sin(x)], [0, np.sin(x), np.cos(x)]])
+    Ry = np.array([[np.cos(y), 0, np.sin(y)], [0, 1, 0], [-np.sin(y), 0, np.cos(y)]])
+    Rz = np.array([[np.cos(z), -np.sin(z), 0], [np.sin(z), np.cos(z), 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def _panel(name, spec, scale, spacing, where, source) -> tuple[Panel, list[_Curve]]:
+    V = np.asarray(spec["vertices"], float) * scale
+    edges = spec["edges"]
+    if len(edges) < 2:
+        raise InputError(f"{where}: needs at least 2 edges, got {len(edges)}")
+    for k, e in enumerate(edges):
+        nxt = edges[(k + 1) % len(edges)]
+        if e["endpoints"][1] != nxt["endpoints"][0]:
+            raise InputError(f"{where}: edges {k} and {(k + 1) % len(edges)} do not join: the outline is not a loop")
+    curves = [_edge_curve(V[e["endpoints"][0]], V[e["endpoints"][1]], e.get("curvature"), where) for e in edges]
+    pts, seg_edge, hints = [], [], []
+    for k, c in enumerate(curves):
+        count = max(int(np.ceil(c.length / spacing)), 1 if c.kind == "line" else 4)
+        hints.append(sum(len(p) for p in pts))
+        pts.append(c.at_length_fraction(np.arange(count) / count))
+        seg_edge += [k] * count
+    rest = np.concatenate(pts)
+    seg_edge = np.asarray(seg_edge)
+    hints = np.asarray(hints)
+    area = sum(c.green() for c in curves)
+    if area < 0:  # GarmentCode normalises loops to counter-clockwise; accept the other way
+        rest, seg_edge = rest[::-1], seg_edge[::-1]
+        rest = np.roll(rest, 1, axis=0)
+        hints = (rest.shape[0] - hints) % rest.shape[0]
+        area = -area
+    T = np.eye(4)
+    T[:3, :3] = euler_xyz(spec.get("rotation", [0, 0, 0]))
+    T[:3, 3] = np.asarray(spec.get("translation", [0, 0, 0]), float) * scale
+    panel = Panel(name=name, source=source, rest=rest, transform=T, corner_hints=np.sort(hints),
+                  segment_edges=seg_edge, area=float(area))
+    return panel, curves

@@ -1,0 +1,56 @@
+"""Static obstacle geometry from scene specs: triangle meshes, meshed spheres, planes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from garment.errors import InputError
+
+
+@dataclass
+class ObstacleGeometry:
+    """A static triangle mesh: vertices (V, 3) in m, faces (F, 3) int32."""
+
+    name: str
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def load_obstacle(spec) -> ObstacleGeometry:
+    """Geometry of a garment.scene.ObstacleSpec."""
+    import trimesh
+
+    if spec.kind == "plane":
+        return ObstacleGeometry(spec.name, *plane_quad(spec.point, spec.normal, spec.size))
+    if spec.kind == "sphere":
+        m = trimesh.creation.icosphere(subdivisions=spec.subdivisions, radius=spec.radius)
+        V = np.asarray(m.vertices) + np.asarray(spec.center, float)
+        return ObstacleGeometry(spec.name, V, np.asarray(m.faces, np.int32))
+    try:
+        m = trimesh.load(spec.mesh, force="mesh", process=False)
+    except Exception as e:  # trimesh raises many types for unreadable files
+        raise InputError(f"{spec.mesh}: cannot read obstacle mesh ({e})") from None
+    V = np.asarray(m.vertices, float) * spec.scale
+    F = np.asarray(m.faces, np.int32)
+    if V.size == 0 or F.size == 0 or not np.all(np.isfinite(V)):
+        raise InputError(f"{spec.mesh}: obstacle mesh has no triangles or non-finite vertices")
+    if spec.up == "y":  # Y-up files to the simulator's Z-up: rotate +90 degrees about X
+        V = V[:, [0, 2, 1]] * np.array([1.0, -1.0, 1.0])
+    return ObstacleGeometry(spec.name, V + np.asarray(spec.translate, float), F)
+
+
+def plane_quad(point, normal, size: float) -> tuple[np.ndarray, np.ndarray]:
+    """A size x size square of two triangles centred at `point`, facing `normal`.
+
+    A mesh rather than an analytic half-space, so that ipctk's static-obstacle filter also
+    keeps other obstacles (a sphere resting on the ground) from colliding with it.
+    """
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    a = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    h = 0.5 * size
+    V = np.asarray(point, float) + h * np.array([-a - b, a - b, a + b, -a + b])
+    return V, np.array([[0, 1, 2], [0, 2, 3]], np.int32)

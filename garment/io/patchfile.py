@@ -1,0 +1,160 @@
+"""The patch file: conformed B-spline patches with their seams, as one JSON document.
+
+    {
+      "format": "bspline-garment/patches", "version": 1, "units": "m",
+      "source": "path of the input pattern or mesh",
+      "patches": [
+        {
+          "name": "panel0",
+          "control_points": [n, m],
+          "knots_u": [0, 0, 0, 1, ..., n-2, n-2, n-2], "knots_v": [...],   # quadratic, open
+          "rest":  n x m x 2 nested lists: control point X_ij of the flat rest shape, m,
+          "world": n x m x 3 nested lists: initial 3D control point C_ij, m,
+          "provenance": {
+            "source", "panel",
+            "corner_vertex_ids": ids of the 4 corner vertices in the input (meshes) or null,
+            "corner_positions": 4 rest positions, corners (0,0), (n-2,0), (n-2,m-2), (0,m-2),
+            "sides": {"v0": {...}, "u1": {...}, "v1": {...}, "u0": {...}} with, per side,
+              "boundary_vertex_ids": the input boundary vertices it covers, in order
+              (meshes: the input boundary edges are consecutive pairs), and/or
+              "pattern_edges": the pattern edges it covers, in order (GarmentCode)
+          },
+          "quality": {the report of conform.quality: boundary_error_mm, min/max
+                      jacobian ratio, corner angles, area errors, seconds, ...}
+        }, ...
+      ],
+      "seams": [
+        {"name": "...",
+         "a": {"patch": "panel0", "uv": K x 2 parameters,
+               "intervals": [{"side": "v0", "t0": 0.0, "t1": 12.0}, ...]},
+         "b": {...}}    # a.uv[k] is sewn to b.uv[k]
+      ],
+      "failures": {"panel name": "why it was not converted"}
+    }
+
+Parameters: X(u, v) = sum N_i(u) N_j(v) X_ij over the domain [0, n-2] x [0, m-2]; side v0 is
+v = 0, u1 is u = n-2, v1 is v = m-2, u0 is u = 0; an interval's t is u on v0/v1 and v on
+u0/u1, from t0 to t1 (t0 > t1 runs backwards).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from garment.errors import InputError
+from garment.model import BoundaryInterval, Patch, PatchSeam, PatchSet
+
+FORMAT = "bspline-garment/patches"
+VERSION = 1
+
+
+def _knots(n: int) -> list[float]:
+    return [float(min(max(j - 2, 0), n - 2)) for j in range(n + 3)]
+
+
+def _clean(obj):
+    """JSON-safe copy: numpy scalars and arrays to Python, non-finite floats to None."""
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _clean(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj
+
+
+def to_dict(ps: PatchSet) -> dict:
+    patches = []
+    for p in ps.patches:
+        n, m = p.shape
+        patches.append({
+            "name": p.name,
+            "control_points": [n, m],
+            "knots_u": _knots(n),
+            "knots_v": _knots(m),
+            "rest": p.rest.tolist(),
+            "world": p.world.tolist(),
+            "provenance": ps.provenance.get(p.name, {}),
+            "quality": ps.quality.get(p.name, {}),
+        })
+    seams = []
+    for s in ps.seams:
+        seams.append({
+            "name": s.name,
+            "a": {"patch": s.patch_a, "uv": s.uv_a.tolist(),
+                  "intervals": [vars(iv) for iv in s.intervals_a]},
+            "b": {"patch": s.patch_b, "uv": s.uv_b.tolist(),
+                  "intervals": [vars(iv) for iv in s.intervals_b]},
+        })
+    return _clean({"format": FORMAT, "version": VERSION, "units": "m", "source": ps.source,
+                   "patches": patches, "seams": seams, "failures": ps.failures})
+
+
+def save_patchset(path, ps: PatchSet) -> Path:
+    """Write the patch file atomically; returns its path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(to_dict(ps), separators=(",", ":")))
+    os.replace(tmp, path)
+    return path
+
+
+def load_patchset(path) -> PatchSet:
+    """Read a patch file (InputError naming the file and the bad entry)."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"{path}: not JSON ({e})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise InputError(f"{path}: not a patch file (format must be {FORMAT!r})")
+    if doc.get("version") != VERSION:
+        raise InputError(f"{path}: version {doc.get('version')!r} is not supported (expected {VERSION})")
+    patches, prov, quality = [], {}, {}
+    for k, d in enumerate(doc.get("patches", [])):
+        where = f"{path}: patches[{k}]"
+        try:
+            n, m = (int(x) for x in d["control_points"])
+            rest = np.asarray(d["rest"], float)
+            world = np.asarray(d["world"], float)
+            if rest.shape != (n, m, 2) or world.shape != (n, m, 3):
+                raise ValueError(f"rest {rest.shape} / world {world.shape} do not match control_points {n} x {m}")
+            if d.get("knots_u", _knots(n)) != _knots(n) or d.get("knots_v", _knots(m)) != _knots(m):
+                raise ValueError("only open uniform integer knot vectors are supported")
+            patches.append(Patch(str(d["name"]), rest, world))
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(f"{where}: {e}") from None
+        prov[patches[-1].name] = d.get("provenance", {})
+        quality[patches[-1].name] = d.get("quality", {})
+    names = {p.name for p in patches}
+    seams = []
+    for k, d in enumerate(doc.get("seams", [])):
+        try:
+            ends = []
+            for key in ("a", "b"):
+                e = d[key]
+                if e["patch"] not in names:
+                    raise ValueError(f"{key}.patch {e['patch']!r} is not a patch in this file")
+                uv = np.asarray(e["uv"], float).reshape(-1, 2)
+                ivs = [BoundaryInterval(str(i["side"]), float(i["t0"]), float(i["t1"])) for i in e["intervals"]]
+                ends.append((e["patch"], uv, ivs))
+            if ends[0][1].shape != ends[1][1].shape:
+                raise ValueError("a.uv and b.uv must have the same number of samples")
+            seams.append(PatchSeam(str(d["name"]), ends[0][0], ends[1][0], ends[0][1], ends[1][1],
+                                   ends[0][2], ends[1][2]))
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(f"{path}: seams[{k}]: {e}") from None
+    return PatchSet(patches, seams, prov, quality, dict(doc.get("failures", {})), str(doc.get("source", "")))

@@ -1,0 +1,53 @@
+"""The collision mesh: every cloth's embedded triangle mesh plus static obstacles.
+
+Cloth vertices come first (x = W C with the constant interpolation matrix W of all
+pieces stacked), obstacle vertices after them; ipctk's static-obstacle filter keeps
+obstacles from colliding with each other.
+"""
+
+from __future__ import annotations
+
+import ipctk
+import numpy as np
+import scipy.sparse as sp
+
+
+class ContactMesh:
+    """W: (Vc, n_cp) cloth interpolation; cloth_faces (Fc, 3) on cloth vertices; rest
+    (Vc, 3) initial cloth vertices; obstacles: list of garment.io.obstacles.ObstacleGeometry."""
+
+    def __init__(self, W: sp.csr_matrix, cloth_faces: np.ndarray, rest: np.ndarray, obstacles=(),
+                 piece_ids: np.ndarray | None = None, self_contact: bool = True):
+        """piece_ids: (Vc,) cloth piece of each vertex, needed when self_contact is off."""
+        self.W = W.tocsr()
+        self.n_cloth = W.shape[0]
+        self.obstacles = list(obstacles)
+        self.obstacle_vertices = (np.concatenate([o.vertices for o in self.obstacles])
+                                  if self.obstacles else np.zeros((0, 3)))
+        faces = [np.asarray(cloth_faces, np.int32)]
+        offset = self.n_cloth
+        for o in self.obstacles:
+            faces.append(o.faces + offset)
+            offset += o.vertices.shape[0]
+        self.faces = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
+        self.cloth_faces = self.faces[: len(cloth_faces)]
+        edges = ipctk.edges(self.faces)
+        V = np.concatenate([rest, self.obstacle_vertices])
+        self.mesh = ipctk.CollisionMesh(np.asfortranarray(V), edges, self.faces)
+        if not self_contact:
+            # Pieces collide with each other and with obstacles, never with themselves;
+            # obstacles share one label so they never collide with each other.
+            ids = np.concatenate([piece_ids, np.full(len(self.obstacle_vertices), -1)]).astype(np.int32)
+            self.mesh.can_collide = ipctk.make_vertex_patches_filter(ids)
+        elif self.obstacles:
+            self.mesh.can_collide = ipctk.make_static_obstacle_filter(self.n_cloth)
+        # dx_cloth = W3 dC: 3x3-block expansion of W, for mapping gradients and Hessians.
+        self.W3 = sp.kron(self.W, sp.identity(3), format="csr")
+
+    def vertices(self, C: np.ndarray) -> np.ndarray:
+        """(V, 3) Fortran-ordered collision-mesh vertices for control points C (n_cp, 3)."""
+        return np.asfortranarray(np.concatenate([self.W @ C, self.obstacle_vertices]))
+
+    def cloth_part(self, v: np.ndarray) -> np.ndarray:
+        """Rows of a per-DOF vector (3 V,) that belong to cloth vertices."""
+        return v[: 3 * self.n_cloth]
