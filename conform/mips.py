@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from sim.bspline import eval_1d_many
 from sim.linsolve import CholeskySolver
@@ -181,6 +182,110 @@ def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True):
     return f, g * S, H * S[None, :, None] * S[None, None, :]
 
 
+@njit(cache=True, inline="always")
+def _project_psd_4(A, out):
+    """out = A with negative eigenvalues clamped to 0 (cyclic Jacobi; A is overwritten)."""
+    V = np.eye(4)
+    for _ in range(10):
+        off, diag = 0.0, 0.0
+        for i in range(4):
+            diag += A[i, i] * A[i, i]
+            for j in range(i + 1, 4):
+                off += A[i, j] * A[i, j]
+        if off <= 1e-30 * diag:
+            break
+        for p in range(3):
+            for r in range(p + 1, 4):
+                if A[p, r] == 0.0:
+                    continue
+                theta = (A[r, r] - A[p, p]) / (2.0 * A[p, r])
+                t = (1.0 if theta >= 0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                c = 1.0 / np.sqrt(t * t + 1.0)
+                sn = t * c
+                for k in range(4):
+                    akp, akr = A[k, p], A[k, r]
+                    A[k, p], A[k, r] = c * akp - sn * akr, sn * akp + c * akr
+                for k in range(4):
+                    apk, ark = A[p, k], A[r, k]
+                    A[p, k], A[r, k] = c * apk - sn * ark, sn * apk + c * ark
+                for k in range(4):
+                    vkp, vkr = V[k, p], V[k, r]
+                    V[k, p], V[k, r] = c * vkp - sn * vkr, sn * vkp + c * vkr
+    for i in range(4):
+        for j in range(4):
+            acc = 0.0
+            for k in range(4):
+                if A[k, k] > 0.0:
+                    acc += V[i, k] * A[k, k] * V[j, k]
+            out[i, j] = acc
+
+
+@njit(cache=True)
+def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
+    """Energy sum_q w_q f_q, gradient w.r.t. Y (Q, 4) and the projected Hessian summed into
+    2 x 2 control-point blocks (n_blocks, 2, 2) through slot (Q, K, K)."""
+    Q, K = D.shape[0], D.shape[2]
+    gY = np.zeros((Q, 4))
+    blocks = np.zeros((n_blocks, 2, 2))
+    E = 0.0
+    H = np.zeros((4, 4))
+    Hp = np.zeros((4, 4))
+    y = np.zeros(4)
+    gd = np.zeros(4)
+    for q in range(Q):
+        for i in range(4):
+            y[i] = Y[q, i] * scale[i]
+        A = y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]
+        d = y[0] * y[3] - y[1] * y[2]
+        if eps > 0.0:
+            r = np.sqrt(d * d + eps * eps)
+            c = 0.5 * (d + r) if d >= 0.0 else 0.5 * eps * eps / (r - d)
+            c1 = 0.5 * (1.0 + d / r)
+            c2 = 0.5 * eps * eps / (r * r * r)
+        else:
+            c, c1, c2 = d, 1.0, 0.0
+        qq = A / c
+        f = qq**power + area_weight * (c / d0 + d0 / c)
+        gA = power * qq ** (power - 1.0) / c
+        gc = -power * qq**power / c + area_weight * (1.0 / d0 - d0 / (c * c))
+        gAA = power * (power - 1.0) * qq ** (power - 2.0) / (c * c)
+        gAc = -power * power * qq ** (power - 1.0) / (c * c)
+        gcc = power * (power + 1.0) * qq**power / (c * c) + 2.0 * area_weight * d0 / (c * c * c)
+        gd[0], gd[1], gd[2], gd[3] = y[3], -y[2], -y[1], y[0]
+        E += w[q] * f
+        for i in range(4):
+            gY[q, i] = w[q] * (2.0 * gA * y[i] + gc * c1 * gd[i]) * scale[i]
+        kdd = gcc * c1 * c1 + gc * c2
+        for i in range(4):
+            for j in range(4):
+                H[i, j] = (4.0 * gAA * y[i] * y[j] + 2.0 * gAc * c1 * (y[i] * gd[j] + gd[i] * y[j])
+                           + kdd * gd[i] * gd[j])
+            H[i, i] += 2.0 * gA
+        H[0, 3] += gc * c1
+        H[3, 0] += gc * c1
+        H[1, 2] -= gc * c1
+        H[2, 1] -= gc * c1
+        _project_psd_4(H, Hp)
+        for i in range(4):
+            for j in range(4):
+                Hp[i, j] *= w[q] * scale[i] * scale[j]
+        # y index 2 alpha + d; local block (a, b): sum_alpha,beta D[alpha, a] Hp[2a+d, 2b+e] D[beta, b]
+        for a in range(K):
+            du_a, dv_a = D[q, 0, a], D[q, 1, a]
+            if du_a == 0.0 and dv_a == 0.0:
+                continue
+            for b in range(K):
+                du_b, dv_b = D[q, 0, b], D[q, 1, b]
+                if du_b == 0.0 and dv_b == 0.0:
+                    continue
+                s = slot[q, a, b]
+                for dd in range(2):
+                    for ee in range(2):
+                        blocks[s, dd, ee] += (du_a * (Hp[dd, ee] * du_b + Hp[dd, 2 + ee] * dv_b)
+                                              + dv_a * (Hp[2 + dd, ee] * du_b + Hp[2 + dd, 2 + ee] * dv_b))
+    return E, gY, blocks
+
+
 class _Assembler:
     """Sums per-point 4 x 4 Hessians in (X_u, X_v) into the sparse (2 n m)^2 matrix
     (interleaved x, y) through a pattern of 2 x 2 control-point blocks built once."""
@@ -189,7 +294,8 @@ class _Assembler:
         Q, K = pts.idx.shape
         nm = pts.n * pts.m
         key = (pts.idx[:, :, None].astype(np.int64) * nm + pts.idx[:, None, :]).ravel()
-        uniq, self.slot = np.unique(key, return_inverse=True)
+        uniq, slot = np.unique(key, return_inverse=True)
+        self.slot = slot.reshape(Q, K, K)
         self.n_blocks = uniq.size
         br, bc = np.divmod(uniq, nm)
         # Block (br, bc) entry (d, e) sits at row 2 br + d, column 2 bc + e.
@@ -201,15 +307,9 @@ class _Assembler:
         self.order = (pattern.data - 1).astype(np.int64)  # csr position -> (block, d, e) flat
         self.D = np.stack([pts.du, pts.dv], axis=1)  # (Q, 2, K): derivative of N_a along u, v
 
-    def matrix(self, Hq: np.ndarray) -> sp.csr_matrix:
-        # Hq (Q, 4, 4) over y = (u.x, u.y, v.x, v.y) = index 2 alpha + d.
-        H5 = Hq.reshape(-1, 2, 2, 2, 2)  # (Q, alpha, d, beta, e)
-        local = np.einsum("qia,qidje,qjb->qabde", self.D, H5, self.D, optimize=True)  # (Q, K, K, 2, 2)
-        local = local.reshape(-1, 4)
-        data = np.empty((self.n_blocks, 4))
-        for c in range(4):
-            data[:, c] = np.bincount(self.slot, weights=local[:, c], minlength=self.n_blocks)
-        return sp.csr_matrix((data.ravel()[self.order], self.indices, self.indptr), shape=self.shape)
+    def matrix(self, blocks: np.ndarray) -> sp.csr_matrix:
+        """The sparse matrix of the (n_blocks, 2, 2) block sums."""
+        return sp.csr_matrix((blocks.reshape(-1)[self.order], self.indices, self.indptr), shape=self.shape)
 
 
 class MipsProblem:
@@ -229,27 +329,34 @@ class MipsProblem:
         self._asm = {}
         self._solver = None
         self.d0 = 1.0
+        self._Hb = None
 
     def _energy(self, X2, pts, w, eps, hessian):
         Y = pts.jacobians(X2)
-        f, g, H = _point_terms(Y, self.scale, eps, self.options.area_weight, self.d0, hessian)
-        E = float(w @ f) / self.W
-        gY = g * (w / self.W)[:, None]
-        grad = np.stack([pts.Du.T @ gY[:, 0] + pts.Dv.T @ gY[:, 2],
-                         pts.Du.T @ gY[:, 1] + pts.Dv.T @ gY[:, 3]], axis=1)
-        Hs = None
+        wn = w / self.W
         if hessian:
             key = id(pts)
             if key not in self._asm:
                 self._asm[key] = _Assembler(pts)
-            Hs = self._asm[key].matrix(H * (w / self.W)[:, None, None])
+            asm = self._asm[key]
+            E, gY, blocks = _newton_terms(Y, wn, self.scale, float(eps), self.options.area_weight,
+                                          self.d0, POWER, asm.D, asm.slot, asm.n_blocks)
+            Hs = asm.matrix(blocks)
+        else:
+            f, g, _ = _point_terms(Y, self.scale, eps, self.options.area_weight, self.d0, False)
+            E = float(wn @ f)
+            gY = g * wn[:, None]
+            Hs = None
+        grad = np.stack([pts.Du.T @ gY[:, 0] + pts.Dv.T @ gY[:, 2],
+                         pts.Du.T @ gY[:, 1] + pts.Dv.T @ gY[:, 3]], axis=1)
         if self.boundary is not None and np.isfinite(self.options.w_boundary):
             wb = self.options.w_boundary
             E += wb * self.boundary.value(X2)
             grad = grad + wb * self.boundary.gradient(X2)
             if hessian:
-                Hb = sp.kron(self.boundary.H, sp.eye(2), format="csr") * (2.0 * wb / self.boundary.h**2)
-                Hs = Hs + Hb
+                if self._Hb is None:
+                    self._Hb = sp.kron(self.boundary.H, sp.eye(2), format="csr") * (2.0 * wb / self.boundary.h**2)
+                Hs = Hs + self._Hb
         return E, grad, Hs
 
     def value(self, X2, eps=0.0, untangle=False):

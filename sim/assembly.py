@@ -50,11 +50,16 @@ class BlockPattern:
     def n_dofs(self) -> int:
         return 3 * self.n_free
 
+    def lookup(self, I: np.ndarray, J: np.ndarray) -> np.ndarray:
+        """Block index of free pairs (I, J) with I >= J, or -1 where not in the pattern."""
+        key = J.astype(np.int64) * self.n_free + I
+        ids = np.minimum(np.searchsorted(self._keys, key), self._keys.shape[0] - 1)
+        return np.where(self._keys[ids] == key, ids, -1)
+
     def block_ids(self, I: np.ndarray, J: np.ndarray) -> np.ndarray:
         """Block index of free pairs (I, J) with I >= J; all must be in the pattern."""
-        key = J.astype(np.int64) * self.n_free + I
-        ids = np.searchsorted(self._keys, key)
-        if np.any(ids >= self._keys.shape[0]) or np.any(self._keys[np.minimum(ids, self._keys.shape[0] - 1)] != key):
+        ids = self.lookup(I, J)
+        if np.any(ids < 0):
             raise KeyError("control-point pair outside the Hessian pattern")
         return ids
 
@@ -242,3 +247,30 @@ def add_scalar_matrix(pattern: BlockPattern, K: sp.spmatrix, data: np.ndarray) -
 def add_diagonal(pattern: BlockPattern, diag: np.ndarray, data: np.ndarray) -> None:
     """Add diag(diag) (x) I3 (diag: (n_cp,)) into `data`."""
     add_scalar_matrix(pattern, sp.diags(diag).tocoo(), data)
+
+
+def add_dof_matrix(pattern: BlockPattern, H: sp.spmatrix, data: np.ndarray) -> int:
+    """Add a symmetric PSD matrix on the free DOFs (3 n_free square) into `data`.
+
+    Entries whose control-point pair lies outside the pattern (distant self-contact)
+    are not dropped but moved onto the diagonal as |H_ij| on both rows: H_out is replaced
+    by the diagonally dominant D = diag(sum_j |H_out_ij|), and D - H_out is PSD, so the
+    result stays PSD (and stiffer) while the pattern, and CHOLMOD's analysis, never
+    change. Returns the number of moved entries.
+    """
+    H = sp.tril(H.tocoo())
+    r, c, v = H.row, H.col, H.data
+    blk = pattern.lookup(r // 3, c // 3)
+    inside = blk >= 0
+    pos = np.full(r.shape, -1, np.int64)
+    pos[inside] = pattern.pos[blk[inside], r[inside] % 3, c[inside] % 3]
+    np.add.at(data, pos[pos >= 0], v[pos >= 0])
+    out = ~inside
+    if np.any(out):
+        diag = pattern.pos[pattern.lookup(np.arange(pattern.n_free), np.arange(pattern.n_free))]
+        d = np.zeros(pattern.n_dofs)
+        np.add.at(d, r[out], np.abs(v[out]))
+        np.add.at(d, c[out], np.abs(v[out]))
+        idx = np.arange(pattern.n_dofs)
+        np.add.at(data, diag[idx // 3, idx % 3, idx % 3], d)
+    return int(out.sum())

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .assembly import BlockPattern
+from .assembly import BlockPattern, add_dof_matrix
 from .energies.base import Energy
 from .linsolve import CholeskySolver
 
@@ -32,7 +32,8 @@ class IncrementalPotential:
                 e.add_hessian(None, self.const_data)
         self.data = self.const_data.copy()
         self.matrix = self.pattern.matrix(self.data)
-        self.system = self.matrix  # what the solver factors: matrix (+ contact, when any)
+        self.system = self.matrix  # what the solver factors
+        self.moved_entries = 0
         self.solver = CholeskySolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
         # Rows of the free DOFs among all 3 n_cp DOFs, to restrict variable-pattern Hessians.
@@ -57,14 +58,9 @@ class IncrementalPotential:
             if not e.constant_hessian:
                 e.add_hessian(C, self.data, project)
         extra = [H for e in self.variable if (H := e.hessian_matrix(C, project)) is not None]
-        if not extra:
-            self.system = self.matrix
-            return
-        S = self._select
-        H = S @ sum(extra[1:], extra[0]) @ S.T
-        # Merge into the fixed pattern; the solver re-analyses only when the union changes.
-        self.system = (self.matrix + sp.tril(H, format="csc")).tocsc()
-        self.system.sort_indices()
+        if extra:
+            S = self._select
+            self.moved_entries = add_dof_matrix(self.pattern, S @ sum(extra[1:], extra[0]) @ S.T, self.data)
 
     def max_step(self, C0: np.ndarray, C1: np.ndarray) -> float:
         """Largest fraction of C0 -> C1 every energy allows (collision-free for contact)."""

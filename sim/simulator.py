@@ -245,6 +245,12 @@ class Simulator:
         if self.inertia is not None:
             self.inertia.target = C_hat
         x0 = np.where(self.pinned[:, None], targets, C_hat)
+        if self.barrier is not None:
+            # The predictor must not tunnel through a barrier thinner than one step of
+            # motion: move only the collision-free fraction of the way (CCD).
+            C_start = np.where(self.pinned[:, None], targets, self.C)
+            alpha = self.potential.max_step(C_start, x0)
+            x0 = C_start + alpha * (x0 - C_start)
         C_new = minimize(self.potential, x0, self.newton, stats)
         if self.barrier is not None:
             stats.extra["contact_count"] = float(self.barrier.n_collisions)

@@ -1,0 +1,115 @@
+"""IPC contact: mapped derivatives, and no triangle ever passing through another."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from garment.errors import InputError
+from garment.io.obstacles import load_obstacle
+from garment.scene import loads_scene
+from sim.assembly import BlockPattern
+from sim.simulator import Simulator
+from tests.intersections import intersecting_pairs
+
+DROP = """
+[material]
+E_bd = 8e3
+[[cloth]]
+name = "sheet"
+size = [0.4, 0.4]
+control_points = [10, 10]
+origin = [-0.2, -0.2, {height}]
+[[obstacle]]
+name = "ball"
+sphere = {{radius = 0.08, center = [0.0, 0.0, 0.08], subdivisions = 2}}
+[[obstacle]]
+name = "ground"
+plane = {{point = [0, 0, 0], normal = [0, 0, 1], size = 2.0}}
+[contact]
+dhat = 1e-3
+kappa = 1e5
+[time]
+dt = 0.01
+"""
+
+
+def test_intersection_check_detects_crossings():
+    tri = np.array([[0, 1, 2]])
+    A = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    B = np.array([[0.2, 0.2, -0.5], [0.2, 0.2, 0.5], [0.8, 0.8, 0.5]])
+    assert intersecting_pairs(A, tri, B, tri) == 1
+    assert intersecting_pairs(A, tri, B + [0, 0, 0.6], tri) == 0
+
+
+def test_sheet_on_sphere_never_intersects():
+    sim = Simulator.from_scene(loads_scene(DROP.format(height=0.2)))
+    ball = load_obstacle(loads_scene(DROP.format(height=0.2)).obstacles[0])
+    ground_z = 0.0
+    faces = sim.pieces[0].topology.faces
+    for _ in range(22):  # free fall ~0.1 m, then contact with the ball
+        st = sim.step()
+        x = sim.positions("sheet")
+        assert np.all(np.isfinite(x))
+        assert intersecting_pairs(x, faces, ball.vertices, ball.faces) == 0
+        assert intersecting_pairs(x, faces) == 0
+        assert x[:, 2].min() > ground_z
+        if st.extra["contact_count"] > 0:
+            assert st.extra["min_distance"] > 0.0
+    # The sheet reached the ball and is held above it (within a few dhat of its top).
+    assert st.extra["contact_count"] > 0
+    centre = x[np.argmin(np.linalg.norm(x[:, :2], axis=1))]
+    assert 0.16 < centre[2] < 0.16 + 0.01
+
+
+def test_barrier_derivatives_on_control_points():
+    sim = Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))
+    e = sim.barrier
+    C = sim.C.copy()
+    assert e.value(C) > 0.0  # the sheet's centre is within dhat of the ball's top
+    rng = np.random.default_rng(1)
+    C = C + 1e-5 * rng.standard_normal(C.shape) * [1, 1, 0]
+    g = np.zeros_like(C)
+    e.add_gradient(C, g)
+    active = np.flatnonzero(np.abs(g).sum(1) > 0)
+    assert active.size > 0
+    h = 1e-7
+    for i in active[:6]:
+        for d in range(3):
+            Cp, Cm = C.copy(), C.copy()
+            Cp[i, d] += h
+            Cm[i, d] -= h
+            fd = (e.value(Cp) - e.value(Cm)) / (2 * h)
+            assert fd == pytest.approx(g[i, d], rel=1e-4, abs=1e-6 * np.abs(g).max())
+    H = e.hessian_matrix(C, project=False).toarray()
+    for i in active[:4]:
+        for d in range(3):
+            Cp, Cm = C.copy(), C.copy()
+            Cp[i, d] += h
+            Cm[i, d] -= h
+            gp, gm = np.zeros_like(C), np.zeros_like(C)
+            e.add_gradient(Cp, gp)
+            e.add_gradient(Cm, gm)
+            col = ((gp - gm) / (2 * h)).ravel()
+            scale = np.abs(H).max()
+            np.testing.assert_allclose(H[:, 3 * i + d], col, rtol=1e-4, atol=1e-5 * scale)
+
+
+def test_projected_contact_hessian_stays_psd_in_pattern():
+    """Off-pattern contact entries move to the diagonal: the assembled matrix stays PSD."""
+    from sim.assembly import add_dof_matrix
+
+    free = np.arange(6)
+    pattern = BlockPattern.from_stencils(free, [np.array([[0, 1, 2], [3, 4, 5]])])
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((18, 18))
+    H = A @ A.T  # dense PSD: couples blocks (0, 3) etc. that the pattern lacks
+    data = np.zeros(pattern.nnz)
+    moved = add_dof_matrix(pattern, __import__("scipy.sparse").sparse.csr_matrix(H), data)
+    assert moved > 0
+    assert np.linalg.eigvalsh(pattern.full(data).toarray()).min() > -1e-9
+
+
+def test_initial_intersection_is_an_input_error():
+    with pytest.raises(InputError, match="intersect"):
+        Simulator.from_scene(loads_scene(DROP.format(height=0.1)))
