@@ -86,3 +86,75 @@ def refine(X: np.ndarray, axes=(0, 1)) -> np.ndarray:
     for ax in axes:
         X = np.moveaxis(refine_1d(np.moveaxis(X, ax, 0)), 0, ax)
     return X
+
+
+def laplace_start(X: np.ndarray, spans: tuple[float, float] | None = None) -> np.ndarray:
+    """Interior control points solving the discrete Laplace equation of the control grid
+    with the boundary rows fixed; spans (a, b), the mean span sizes along u and v, weight
+    the u and v neighbours by 1 / a^2 and 1 / b^2 (an anisotropic grid stays harmonic)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    X = X.copy()
+    n, m = X.shape[:2]
+    wu, wv = (1.0, 1.0) if spans is None else (1.0 / spans[0] ** 2, 1.0 / spans[1] ** 2)
+    ni, mi = n - 2, m - 2
+    idx = np.arange(ni * mi).reshape(ni, mi)
+    i, j = np.meshgrid(np.arange(ni), np.arange(mi), indexing="ij")
+    rows, cols, vals = [idx.ravel()], [idx.ravel()], [np.full(ni * mi, 2 * wu + 2 * wv)]
+    b = np.zeros((ni * mi, 2))
+    for di, dj, w in ((1, 0, wu), (-1, 0, wu), (0, 1, wv), (0, -1, wv)):
+        ii, jj = i + di, j + dj
+        inside = (ii >= 0) & (ii < ni) & (jj >= 0) & (jj < mi)
+        rows.append(idx[inside])
+        cols.append(idx[ii[inside], jj[inside]])
+        vals.append(np.full(int(inside.sum()), -w))
+        # Neighbours on the boundary move to the right-hand side.
+        out = ~inside
+        b[idx[out]] += w * X[ii[out] + 1, jj[out] + 1]
+    A = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(ni * mi,) * 2)
+    X[1:-1, 1:-1] = splu(A).solve(b).reshape(ni, mi, 2)
+    return X
+
+
+def boundary_area(X: np.ndarray) -> float:
+    """Area enclosed by the patch boundary (Green's theorem on the four side curves; exact:
+    the integrand is polynomial on each span)."""
+    from sim.bspline import basis_matrix
+
+    t, w = np.polynomial.legendre.leggauss(3)
+    total = 0.0
+    for row in side_rows(X):
+        k = row.shape[0]
+        u = (np.arange(k - 2)[:, None] + 0.5 * (t[None, :] + 1.0)).ravel()
+        ww = np.tile(0.5 * w, k - 2)
+        p = basis_matrix(u, k) @ row
+        dp = basis_matrix(u, k, 1) @ row
+        total += 0.5 * float(np.sum(ww * (p[:, 0] * dp[:, 1] - p[:, 1] * dp[:, 0])))
+    return total
+
+
+def match_area(X: np.ndarray, area: float, iterations: int = 3) -> tuple[np.ndarray, float]:
+    """Offset the boundary rows (corners excepted) along their outward normals by one
+    common distance so the enclosed area equals `area`; returns the net and the offset (m).
+    A least-squares side fit is close to area-neutral but not exactly; this removes the
+    rest, so the patch keeps the panel's area (its mass) to round-off."""
+    X = X.copy()
+    total = 0.0
+    for _ in range(iterations):
+        rows = side_rows(X)
+        perimeter = sum(float(np.linalg.norm(np.diff(r, axis=0), axis=1).sum()) for r in rows)
+        delta = (area - boundary_area(X)) / perimeter
+        if abs(delta) < 1e-15:
+            break
+        total += delta
+        new = []
+        for r in rows:
+            tang = np.gradient(r, axis=0)
+            normal = np.stack([tang[:, 1], -tang[:, 0]], axis=1)  # outward for a CCW loop
+            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+            r = r.copy()
+            r[1:-1] += delta * normal[1:-1]
+            new.append(r)
+        X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = new
+    return X, total

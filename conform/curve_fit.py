@@ -7,7 +7,10 @@ end points pinned to the corners and a second-difference penalty against zig-zag
 
     min_C  sum_a (w_a / L) |C(u_a) - P_a|^2  +  lam / (n - 2) sum_i |C_i-1 - 2 C_i + C_i+1|^2
 
-Both terms are mean squares in m^2, so `lam` means the same on every side and at every
+The fit error that matters is the largest distance, so the weights are then reweighted a
+few times, w_a <- w_a (1 + (r_a / mean r)^2) (iteratively reweighted least squares towards
+a minimax fit): this about halves the error at sharp features such as dart tips at the
+same control count. Both terms are mean squares in m^2, so `lam` means the same on every side and at every
 resolution; on a smooth curve |second difference| ~ h^2 / R is tiny and the penalty only
 matters where the data leave control points undetermined (spans shorter than the input
 edges).
@@ -15,6 +18,7 @@ edges).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +26,7 @@ import numpy as np
 from sim.bspline import basis_matrix
 
 LAMBDA = 1e-4
+REWEIGHT = 6
 
 
 @dataclass
@@ -87,6 +92,23 @@ def fit_side(side: SideSamples, n: int, lam: float = LAMBDA) -> np.ndarray:
     rhs = b[free] - A[free][:, [0, n - 1]] @ C[[0, n - 1]]
     C[free] = np.linalg.solve(A[free, free], rhs)
     return C
+
+
+def fit_side_reweighted(side: SideSamples, n: int, lam: float = LAMBDA,
+                        iterations: int = REWEIGHT) -> tuple[np.ndarray, SideSamples]:
+    """fit_side with IRLS towards the minimax fit; returns the control points and the
+    samples with their final weights."""
+    for it in range(iterations + 1):
+        C = fit_side(side, n, lam)
+        if it == iterations:
+            break
+        r = np.linalg.norm(evaluate(C, side.parameters(n)) - side.points, axis=1)
+        mean = float(r.mean())
+        if mean <= 0.0:
+            break
+        w = side.w * (1.0 + (r / mean) ** 2)
+        side = dataclasses.replace(side, w=w * (side.w.sum() / w.sum()))  # same total weight
+    return C, side
 
 
 def evaluate(ctrl: np.ndarray, u: np.ndarray, derivative: int = 0) -> np.ndarray:

@@ -3,25 +3,29 @@
 Minimises, over the control points X (n, m, 2) of the rest map X(u, v),
 
     E(X) = sum_q w_q f(J_q) / sum_q w_q  +  w_b E_fit(X),
-    f(J) = (|J|_F^2 / det J)^2 = |J|^2 |J^-1|^2,
+    f(J) = (|J|_F^2 / det J)^2 + w_a (det J / d0 + d0 / det J),
 
-with J = dX/du diag(1/a, 1/b) the Jacobian at the quadrature points (3 x 3 Gauss per knot
-span) scaled by the mean span sizes a, b along u and v, so that a uniform grid of square
-cells scores the minimum 4 whatever the panel's size and control counts. E_fit is the
-side fits' least-squares objective (curve_fit) over the boundary rows divided by the squared
-span size: the boundary may slide a little to relax the interior but stays on the outline.
-The four corners are fixed.
+with J = dX/du diag(1/a, 1/b) the Jacobian scaled by the mean span sizes a, b along u and
+v, so a uniform grid of square cells scores the minimum whatever the panel's size and
+control counts. The first term is |J|^2 |J^-1|^2 (MIPS, the paper's choice); the second,
+with d0 the mean scaled determinant, evens out the cell areas, which makes the reduced rule
+more accurate. E_fit is the side fits' least-squares objective (curve_fit) over the
+boundary rows over the squared span size: the boundary may give a little to relax the
+interior. The four corners are fixed.
 
-Projected Newton: per-point 4 x 4 Hessians in (X_u, X_v) projected to PSD, assembled
-through fixed 9-point stencils, CHOLMOD; the line search starts at the largest step that
-keeps det J > 0 at every guard point (the points of every simulator rule: reduced, 2 x 2
-and 3 x 3 Gauss, plus the knots; det along a Newton ray is a quadratic in the step) and
-backtracks for Armijo.
+The points q are every point where a simulator rule evaluates the rest Jacobian - 3 x 3
+Gauss per knot span (weight 1), and 2 x 2 Gauss and the reduced rule (weight 0.1 each) -
+so the barrier keeps all of them away from det J = 0 and no point the simulator uses can
+invert. Projected Newton: per-point 4 x 4 Hessians in (X_u, X_v) projected to PSD (Jacobi
+eigen-decomposition in a numba kernel that also sums them into 2 x 2 control-point blocks
+of a fixed sparsity pattern), CHOLMOD; the line search starts at the largest step that
+keeps every det J > 0 (det along a Newton ray is a quadratic in the step) and backtracks
+for Armijo.
 
 A start with inverted points is first untangled with Garanzha et al.'s regularisation
-("Foldover-free maps in 50 lines of code", 2021): det J in the denominator becomes
-chi(d, eps) = (d + sqrt(d^2 + eps^2)) / 2 > 0 over the guard points, with eps shrinking
-until every guard determinant is positive; then the exact barrier takes over.
+("Foldover-free maps in 50 lines of code", 2021): det J in the denominators becomes
+chi(d, eps) = (d + sqrt(d^2 + eps^2)) / 2 > 0, with eps shrinking until every determinant
+is positive; then the exact barrier takes over.
 """
 
 from __future__ import annotations
@@ -36,9 +40,10 @@ from numba import njit
 
 from sim.bspline import eval_1d_many
 from sim.linsolve import CholeskySolver
-from sim.quadrature import Rule, gauss, reduced_membrane
+from sim.quadrature import gauss, reduced_membrane
 
 POWER = 2.0  # f = (|J|^2 / det)^POWER; 2 is |J|^2 |J^-1|^2 of the paper
+SIGMA_MIN = 0.3  # slowest eps decrease per untangling step (Garanzha et al. use 0.1)
 
 
 class PointSet:
@@ -81,22 +86,16 @@ def det(Y: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=8)
-def guard_points(n: int, m: int) -> PointSet:
-    """Every point where a simulator rule evaluates the rest Jacobian, plus the knots."""
-    rules = [gauss(n, m, 2), gauss(n, m, 3)]
+def rule_points(n: int, m: int, side_weight: float = 0.1) -> PointSet:
+    """The points of every simulator rule (sim/quadrature.py) with energy weights: 3 x 3
+    Gauss at full weight, 2 x 2 Gauss and the reduced rule (n, m >= 5) at side_weight."""
+    rules = [(gauss(n, m, 3), 1.0), (gauss(n, m, 2), side_weight)]
     if n >= 5 and m >= 5:
-        rules.append(reduced_membrane(n, m))
-    ku, kv = np.meshgrid(np.arange(n - 1.0), np.arange(m - 1.0), indexing="ij")
-    rules.append(Rule(ku.ravel(), kv.ravel(), np.zeros(ku.size)))
-    u = np.concatenate([r.u for r in rules])
-    v = np.concatenate([r.v for r in rules])
-    return PointSet(n, m, u, v)
-
-
-@lru_cache(maxsize=8)
-def energy_points(n: int, m: int) -> PointSet:
-    r = gauss(n, m, 3)
-    return PointSet(n, m, r.u, r.v, r.w)
+        rules.append((reduced_membrane(n, m), side_weight))
+    u = np.concatenate([r.u for r, _ in rules])
+    v = np.concatenate([r.v for r, _ in rules])
+    w = np.concatenate([r.w * k for r, k in rules])
+    return PointSet(n, m, u, v, w)
 
 
 @dataclass
@@ -131,7 +130,7 @@ class MipsResult:
     iterations: int
     untangle_iterations: int
     energy: float
-    min_det_ratio: float  # min det / mean det over the guard points
+    min_det_ratio: float  # min det / mean det over the points
     converged: bool
     seconds: float
     history: list = field(default_factory=list)
@@ -319,26 +318,25 @@ class MipsProblem:
                  fixed: np.ndarray, options: MipsOptions):
         self.n, self.m = n, m
         self.scale = np.array([1 / scale[0], 1 / scale[0], 1 / scale[1], 1 / scale[1]])
-        self.pts = energy_points(n, m)
-        self.guard = guard_points(n, m)
+        self.pts = rule_points(n, m)
         self.W = float(self.pts.w.sum())
         self.boundary = boundary
         self.options = options
         self.fixed = fixed  # (n*m*2,) bool
         self.free = np.nonzero(~fixed)[0]
-        self._asm = {}
+        self._asm = None
         self._solver = None
         self.d0 = 1.0
         self._Hb = None
 
-    def _energy(self, X2, pts, w, eps, hessian):
+    def _energy(self, X2, eps, hessian):
+        pts = self.pts
         Y = pts.jacobians(X2)
-        wn = w / self.W
+        wn = pts.w / self.W
         if hessian:
-            key = id(pts)
-            if key not in self._asm:
-                self._asm[key] = _Assembler(pts)
-            asm = self._asm[key]
+            if self._asm is None:
+                self._asm = _Assembler(pts)
+            asm = self._asm
             E, gY, blocks = _newton_terms(Y, wn, self.scale, float(eps), self.options.area_weight,
                                           self.d0, POWER, asm.D, asm.slot, asm.n_blocks)
             Hs = asm.matrix(blocks)
@@ -359,42 +357,32 @@ class MipsProblem:
                 Hs = Hs + self._Hb
         return E, grad, Hs
 
-    def value(self, X2, eps=0.0, untangle=False):
-        pts = self.guard if untangle else self.pts
-        w = self._guard_w if untangle else pts.w
-        return self._energy(X2, pts, w, eps, False)[0]
+    def value(self, X2, eps=0.0) -> float:
+        return self._energy(X2, eps, False)[0]
 
-    def newton(self, X2, eps=0.0, untangle=False):
-        pts = self.guard if untangle else self.pts
-        w = self._guard_w if untangle else pts.w
-        E, g, H = self._energy(X2, pts, w, eps, True)
+    def newton(self, X2, eps=0.0):
+        """Energy, Newton decrement and the Newton step (n*m, 2) at X2."""
+        E, g, H = self._energy(X2, eps, True)
         gz = g.ravel()[self.free]
         Hff = H[self.free][:, self.free]
         Hff = Hff + sp.eye(Hff.shape[0]) * (1e-10 * float(Hff.diagonal().mean()))
         lower = sp.tril(Hff, format="csc")
-        if self._solver is None or untangle != self._solver_mode:
+        if self._solver is None:
             self._solver = CholeskySolver(lower)
-            self._solver_mode = untangle
         self._solver.factorize(lower)
         dz = -self._solver.solve(gz)
         d = np.zeros(2 * self.n * self.m)
         d[self.free] = dz
         return E, -float(gz @ dz), d.reshape(-1, 2)
 
-    @property
-    def _guard_w(self):
-        if not hasattr(self, "_gw"):
-            # Uniform weights per point summing to the parametric area.
-            self._gw = np.full(len(self.guard), self.W / len(self.guard))
-        return self._gw
-
-    def guard_det(self, X2):
-        return det(self.guard.jacobians(X2) * self.scale)
+    def dets(self, X2) -> np.ndarray:
+        """Scaled det J at every point."""
+        return det(self.pts.jacobians(X2) * self.scale)
 
     def max_step(self, X2, D2) -> float:
-        """Largest alpha <= 1 such that det J stays positive at all guard points along X + alpha D."""
-        Y = self.guard.jacobians(X2) * self.scale
-        dY = self.guard.jacobians(D2) * self.scale
+        """The first alpha > 0 at which some det J reaches 0 along X + alpha D (inf: none)."""
+        Y = self.pts.jacobians(X2) * self.scale
+        dY = self.pts.jacobians(D2) * self.scale
         c0 = det(Y)
         c2 = det(dY)
         c1 = Y[:, 0] * dY[:, 3] + dY[:, 0] * Y[:, 3] - Y[:, 1] * dY[:, 2] - dY[:, 1] * Y[:, 2]
@@ -409,40 +397,39 @@ class MipsProblem:
         return float(min(alpha.min(), np.inf))
 
 
-def _untangle(prob: "MipsProblem", X2, on_guard: bool, options: MipsOptions, history):
+def _untangle(prob: MipsProblem, X2, options: MipsOptions, history):
     """Newton steps on the eps-regularised energy with Garanzha et al.'s eps update:
     mu = (1 - sigma) chi(D-, eps), eps = 2 sqrt(mu (mu - D-)) where D- is the smallest
-    determinant and sigma = max(1 - E_k / E_k-1, 0.1)."""
-    def min_det(X):
-        return float((prob.guard_det(X) if on_guard else det(prob.pts.jacobians(X) * prob.scale)).min())
-
-    D = min_det(X2)
+    determinant and sigma = 1 - E_k / E_k-1 clamped to [SIGMA_MIN, 0.5]. Stops once every
+    determinant is positive."""
+    D = float(prob.dets(X2).min())
     mu = 0.1 * prob.d0
     eps = 2.0 * np.sqrt(mu * (mu - D)) if D < mu else 1e-8 * prob.d0
     its = 0
     for its in range(1, options.untangle_iterations + 1):
-        E, dec, D2 = prob.newton(X2, eps, untangle=on_guard)
+        E, dec, D2 = prob.newton(X2, eps)
         alpha = 1.0
         for _ in range(30):
-            E_new = prob.value(X2 + alpha * D2, eps, untangle=on_guard)
+            E_new = prob.value(X2 + alpha * D2, eps)
             if E_new <= E - 1e-4 * alpha * dec:
                 break
             alpha *= 0.5
         X2 = X2 + alpha * D2
-        D = min_det(X2)
+        D = float(prob.dets(X2).min())
         history.append(("untangle", eps, D))
         if D > 0:
             break
-        sigma = min(max(1.0 - E_new / E, 0.1), 0.5)  # capped: a big first drop must not zero eps
-        mu = (1.0 - sigma) * _chi(D, eps)
+        sigma = min(max(1.0 - E_new / E, SIGMA_MIN), 0.5)  # capped: a big first drop must not zero eps
+        mu = (1.0 - sigma) * float(_chi(np.array(D), eps))
         eps = 2.0 * np.sqrt(mu * (mu - D)) if D < mu else 1e-8 * prob.d0
     return X2, its
 
 
 def refine(X: np.ndarray, scale, boundary: BoundaryFit | None, fixed_points: np.ndarray,
            options: MipsOptions | None = None) -> MipsResult:
-    """MIPS-refine the net X (n, m, 2); fixed_points (n, m) bool marks control points that
-    never move (the corners, or the whole boundary when w_boundary is inf)."""
+    """MIPS-refine the net X (n, m, 2); scale: mean span sizes (a, b) along u and v, m;
+    fixed_points (n, m) bool marks control points that never move (the corners, or the
+    whole boundary when w_boundary is inf)."""
     options = options or MipsOptions()
     start = time.perf_counter()
     n, m = X.shape[:2]
@@ -450,22 +437,17 @@ def refine(X: np.ndarray, scale, boundary: BoundaryFit | None, fixed_points: np.
     prob = MipsProblem(n, m, scale, boundary, fixed, options)
     X2 = X.reshape(-1, 2).copy()
     history = []
-    dq = det(prob.pts.jacobians(X2) * prob.scale)
-    prob.d0 = float(abs(prob.pts.w @ dq) / prob.W)  # the boundary fixes the total area
+    d = prob.dets(X2)
+    prob.d0 = float(abs(prob.pts.w @ d) / prob.W)  # the boundary fixes the total area
 
-    # 1. Untangle (only if some guard determinant is not positive): first on the energy
-    # points, then on all guard points if some of those are still inverted.
+    # 1. Untangle, if some determinant is not positive.
     untangle_it = 0
-    for untangle_set in ("energy", "guard"):
-        d = prob.guard_det(X2)
-        if d.min() > 0:
-            break
-        X2, its = _untangle(prob, X2, untangle_set == "guard", options, history)
-        untangle_it += its
-    d = prob.guard_det(X2)
     if d.min() <= 0:
-        return MipsResult(X2.reshape(n, m, 2), 0, untangle_it, np.inf,
-                          float(d.min() / abs(d).mean()), False, time.perf_counter() - start, history)
+        X2, untangle_it = _untangle(prob, X2, options, history)
+        d = prob.dets(X2)
+        if d.min() <= 0:
+            return MipsResult(X2.reshape(n, m, 2), 0, untangle_it, np.inf,
+                              float(d.min() / abs(d).mean()), False, time.perf_counter() - start, history)
 
     # 2. MIPS with the exact barrier.
     converged = False
@@ -486,13 +468,13 @@ def refine(X: np.ndarray, scale, boundary: BoundaryFit | None, fixed_points: np.
                 break
             alpha *= 0.5
         if not accepted:
-            converged = True  # no decrease possible at round-off level
+            converged = True  # no decrease left above round-off
             break
         X2 = X2 + alpha * D2
         if (E - E_new) < 1e-10 * E:
             E = E_new
             converged = True
             break
-    d = prob.guard_det(X2)
+    d = prob.dets(X2)
     return MipsResult(X2.reshape(n, m, 2), it, untangle_it, prob.value(X2), float(d.min() / d.mean()),
                       converged, time.perf_counter() - start, history)

@@ -22,8 +22,8 @@ from garment.model import SIDES, Panel, PanelSeam, Patch, PatchSet
 
 from . import corners as corners_mod
 from .boundary import Outline, PanelError, extract_outline
-from .control_net import assemble_boundary, refine, tangential_start
-from .curve_fit import LAMBDA, SideSamples, basis_matrix, fit_side, sample_polyline, second_difference
+from .control_net import assemble_boundary, laplace_start, match_area, refine, tangential_start
+from .curve_fit import LAMBDA, SideSamples, basis_matrix, fit_side_reweighted, sample_polyline, second_difference
 from .lift import lift
 from .mips import BoundaryFit, MipsOptions
 from .mips import refine as mips_refine
@@ -102,11 +102,34 @@ def counts_for(sides: Sides, options: ConformOptions) -> tuple[int, int]:
 
 
 def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float):
-    samples = [sample_polyline(p, spacing) for p in sides.polylines]
+    """Side fits at counts (n, m, n, m): samples (with their final IRLS weights), control
+    points and the fit errors (m)."""
     counts = (n, m, n, m)
-    ctrls = [fit_side(s, c, lam) for s, c in zip(samples, counts)]
+    fits = [fit_side_reweighted(sample_polyline(p, spacing), c, lam) for p, c in zip(sides.polylines, counts)]
+    ctrls = [f[0] for f in fits]
+    samples = [f[1] for f in fits]
     errors = [side_error(p, c) for p, c in zip(sides.polylines, ctrls)]
     return samples, ctrls, np.asarray(errors)
+
+
+def interior_start(Xb: np.ndarray) -> np.ndarray:
+    """The tangential-projection start of DESIGN.md 4b.3; if it inverts quadrature points,
+    the harmonic (Laplace) net when that inverts fewer."""
+    from .mips import det, rule_points
+
+    n, m = Xb.shape[:2]
+    guard = rule_points(n, m)
+
+    def inverted(X):
+        return int((det(guard.jacobians(X.reshape(-1, 2))) <= 0).sum())
+
+    X = tangential_start(Xb)
+    bad = inverted(X)
+    if bad:
+        Xl = laplace_start(Xb)
+        if inverted(Xl) < bad:
+            X = Xl
+    return X
 
 
 def boundary_term(samples: list[SideSamples], n: int, m: int, lam: float, h: float) -> BoundaryFit:
@@ -170,8 +193,10 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
                                           sides.lengths[[1, 3]].max() / (m - 2)))
         samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
 
-    # Interior start and MIPS, then knot-insertion levels.
-    X = tangential_start(assemble_boundary(ctrls))
+    # Interior start (the tangential projection, or a harmonic net where that folds
+    # less) and MIPS, then knot-insertion levels.
+    Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
+    X = interior_start(Xb)
     t_fit = time.perf_counter() - start
     solves = []
     for level in range(options.refine + 1):
@@ -180,7 +205,8 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             n, m = X.shape[:2]
             spacing = min(spacing, 0.25 * min(sides.lengths) / max(n, m))
             samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
-            X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = ctrls
+            Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
+            X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = Xb[:, 0], Xb[-1, :], Xb[::-1, -1], Xb[0, ::-1]
         scale = (0.5 * (sides.lengths[0] + sides.lengths[2]) / (n - 2),
                  0.5 * (sides.lengths[1] + sides.lengths[3]) / (m - 2))
         fixed = np.zeros((n, m), bool)
@@ -188,6 +214,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         if not np.isfinite(options.mips.w_boundary):
             fixed[0, :] = fixed[-1, :] = fixed[:, 0] = fixed[:, -1] = True
         bt = boundary_term(samples, n, m, options.lam, float(np.sqrt(scale[0] * scale[1])))
+        bt.c -= bt.value(X.reshape(-1, 2)) * bt.h**2  # E_fit = 0 at the side fits
         res = mips_refine(X, scale, bt, fixed, options.mips)
         solves.append(res)
         X = res.X
@@ -206,6 +233,8 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         "mips_converged": all(r.converged for r in solves),
         "mips_energy": solves[-1].energy,
         "adapt_rounds": rounds,
+        "area_offset_mm": 1e3 * area_offset,
+        "side_fit_error_mm": [1e3 * e for e in errors],
     })
     rep["status"] = "ok" if rep["inverted_points"] == 0 else "inverted"
     rep["provenance"] = provenance(panel, outline, sides)

@@ -2,8 +2,8 @@
 
 - boundary fit error: the two-sided (Hausdorff) distance between the input outline and
   the patch boundary, mm, against the tolerance max(1 mm, 0.5 % of the panel diameter);
-- Jacobian: det dX/du at every guard point (the points of every simulator rule and the
-  knots), as a ratio to its mean: min (> 0 means no inverted point) and max;
+- Jacobian: det dX/du at every guard point (the points of every simulator rule: reduced,
+  2 x 2 and 3 x 3 Gauss), as a ratio to its mean: min (> 0 means no inverted point) and max;
 - corner angles: the patch's interior angles at its four corners, degrees;
 - skew: the smallest angle between X_u and X_v over the guard points, degrees;
   aspect: the largest singular-value ratio of the scaled Jacobian;
@@ -22,7 +22,7 @@ from sim.rest import point_data
 from .boundary import Outline
 from .curve_fit import evaluate
 from .control_net import side_rows
-from .mips import det, guard_points
+from .mips import det, rule_points
 
 
 def polyline_distance(points: np.ndarray, poly: np.ndarray, closed: bool, k: int = 6) -> np.ndarray:
@@ -91,7 +91,7 @@ def report(outline: Outline, X: np.ndarray, tolerance: float) -> dict:
     """Quality numbers of the rest net X (n, m, 2) against its panel's outline."""
     n, m = X.shape[:2]
     X2 = X.reshape(-1, 2)
-    guard = guard_points(n, m)
+    guard = rule_points(n, m)
     Y = guard.jacobians(X2)
     d = det(Y)
     ratio = d / d.mean()
