@@ -451,12 +451,7 @@ def _as_box(t: _Table, value: Any, key: str) -> tuple[tuple[float, float], tuple
 
 
 def _read_load(t: _Table) -> LoadSpec:
-    direction = t.numbers("pressure_direction", 3)
-    if direction is not None:
-        norm = math.hypot(*direction)
-        if norm == 0.0:
-            t.fail(t.key("pressure_direction"), "must be non-zero")
-        direction = tuple(x / norm for x in direction)
+    direction = t.unit_vector("pressure_direction")
     return LoadSpec(
         **_given(
             gravity=t.numbers("gravity", 3),
@@ -511,13 +506,8 @@ def _read_obstacle(t: _Table, index: int, base: Path) -> ObstacleSpec:
                              subdivisions=sp.integer("subdivisions", ge=0, le=6)))
     else:
         pl = t.table("plane", _PLANE_KEYS)
-        normal = pl.numbers("normal", 3)
-        if normal is not None:
-            norm = math.hypot(*normal)
-            if norm == 0.0:
-                pl.fail(pl.key("normal"), "must be non-zero")
-            normal = tuple(x / norm for x in normal)
-        values.update(_given(point=pl.numbers("point", 3), normal=normal, size=pl.number("size", gt=0)))
+        values.update(_given(point=pl.numbers("point", 3), normal=pl.unit_vector("normal"),
+                             size=pl.number("size", gt=0)))
     return ObstacleSpec(**values)
 
 
@@ -601,6 +591,16 @@ class _Table:
         return self.read(
             name, _Table.as_tuple, required, item=_Table.as_number, length=length, **bounds
         )
+
+    def unit_vector(self, name: str) -> tuple[float, float, float] | None:
+        """A non-zero 3-vector, normalised."""
+        v = self.numbers(name, 3)
+        if v is None:
+            return None
+        norm = math.hypot(*v)
+        if norm == 0.0:
+            self.fail(self.key(name), "must be non-zero")
+        return tuple(x / norm for x in v)
 
     def integers(self, name: str, length: int, required: bool = False, **bounds):
         return self.read(
