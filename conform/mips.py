@@ -43,7 +43,8 @@ from sim.linsolve import CholeskySolver
 from sim.quadrature import gauss, reduced_membrane
 
 POWER = 2.0  # f = (|J|^2 / det)^POWER; 2 is |J|^2 |J^-1|^2 of the paper
-SIGMA_MIN = 0.3  # slowest eps decrease per untangling step (Garanzha et al. use 0.1)
+SIGMA_MIN = 0.3
+STALL_WINDOW = 8  # untangling gives up when min det gains < 1 % over this many steps  # slowest eps decrease per untangling step (Garanzha et al. use 0.1)
 
 
 class PointSet:
@@ -117,7 +118,7 @@ class BoundaryFit:
 
 @dataclass
 class MipsOptions:
-    w_boundary: float = 1e3  # weight of E_fit; inf fixes the boundary rows
+    w_boundary: float = np.inf  # weight of E_fit; inf fixes the boundary rows
     max_iterations: int = 60
     tolerance: float = 1e-7  # stop when the Newton decrement / 2 < tolerance * E
     untangle_iterations: int = 100
@@ -419,6 +420,9 @@ def _untangle(prob: MipsProblem, X2, options: MipsOptions, history):
         history.append(("untangle", eps, D))
         if D > 0:
             break
+        recent = [h[2] for h in history[-STALL_WINDOW:] if h[0] == "untangle"]
+        if len(recent) == STALL_WINDOW and recent[-1] - recent[0] < 0.01 * abs(recent[0]):
+            break  # stalled: this boundary admits no valid interior at this resolution
         sigma = min(max(1.0 - E_new / E, SIGMA_MIN), 0.5)  # capped: a big first drop must not zero eps
         mu = (1.0 - sigma) * float(_chi(np.array(D), eps))
         eps = 2.0 * np.sqrt(mu * (mu - D)) if D < mu else 1e-8 * prob.d0

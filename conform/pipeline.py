@@ -12,6 +12,7 @@ panel diameter) - the pair's count grows by a quarter and the sides are refitted
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -112,6 +113,29 @@ def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float):
     return samples, ctrls, np.asarray(errors)
 
 
+UNTANGLE_RETRIES = 3
+
+
+def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOptions, w_boundary: float):
+    """MIPS on the net X whose boundary rows are the side fits: the boundary fixed
+    (w_boundary = inf) or held by the penalty w_boundary E_fit, anchored to those rows."""
+    n, m = X.shape[:2]
+    fixed = np.zeros((n, m), bool)
+    fixed[[0, 0, -1, -1], [0, -1, 0, -1]] = True
+    if not np.isfinite(w_boundary):
+        fixed[0, :] = fixed[-1, :] = fixed[:, 0] = fixed[:, -1] = True
+    # Targets on the current boundary curves (area-corrected fits), so E_fit = 0 there.
+    from .control_net import side_rows
+    from .curve_fit import evaluate
+
+    anchored = [dataclasses.replace(s, points=evaluate(row, s.parameters(row.shape[0])))
+                for s, row in zip(samples, side_rows(X))]
+    bt = boundary_term(anchored, n, m, options.lam, float(np.sqrt(scale[0] * scale[1])))
+    bt.c -= bt.value(X.reshape(-1, 2)) * bt.h**2  # round-off: E_fit(X) = 0 exactly
+    mips_options = dataclasses.replace(options.mips, w_boundary=w_boundary)
+    return mips_refine(X, scale, bt, fixed, mips_options)
+
+
 def interior_start(Xb: np.ndarray) -> np.ndarray:
     """The tangential-projection start of DESIGN.md 4b.3; if it inverts quadrature points,
     the harmonic (Laplace) net when that inverts fewer."""
@@ -199,6 +223,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
     X = interior_start(Xb)
     t_fit = time.perf_counter() - start
     solves = []
+    failed_iterations = 0
     for level in range(options.refine + 1):
         if level > 0:
             X = refine(X)
@@ -209,16 +234,29 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = Xb[:, 0], Xb[-1, :], Xb[::-1, -1], Xb[0, ::-1]
         scale = (0.5 * (sides.lengths[0] + sides.lengths[2]) / (n - 2),
                  0.5 * (sides.lengths[1] + sides.lengths[3]) / (m - 2))
-        fixed = np.zeros((n, m), bool)
-        fixed[[0, 0, -1, -1], [0, -1, 0, -1]] = True
-        if not np.isfinite(options.mips.w_boundary):
-            fixed[0, :] = fixed[-1, :] = fixed[:, 0] = fixed[:, -1] = True
-        bt = boundary_term(samples, n, m, options.lam, float(np.sqrt(scale[0] * scale[1])))
-        bt.c -= bt.value(X.reshape(-1, 2)) * bt.h**2  # E_fit = 0 at the side fits
-        res = mips_refine(X, scale, bt, fixed, options.mips)
+        res = _solve(X, scale, samples, options, options.mips.w_boundary)
+        retries = 0
+        while res.energy == np.inf and options.control_points is None and retries < UNTANGLE_RETRIES:
+            # No valid interior at this resolution (typically a tab between darts, which
+            # crowds the rows along the other pair of sides): more control points along
+            # the longer pair of sides, refit, start again.
+            retries += 1
+            failed_iterations += res.untangle_iterations
+            if max(sides.lengths[0], sides.lengths[2]) >= max(sides.lengths[1], sides.lengths[3]):
+                n = int(np.ceil(1.25 * (n - 2))) + 2
+            else:
+                m = int(np.ceil(1.25 * (m - 2))) + 2
+            spacing = min(spacing, 0.25 * min(sides.lengths[[0, 2]].max() / (n - 2),
+                                              sides.lengths[[1, 3]].max() / (m - 2)))
+            samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+            Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
+            X = interior_start(Xb)
+            scale = (0.5 * (sides.lengths[0] + sides.lengths[2]) / (n - 2),
+                     0.5 * (sides.lengths[1] + sides.lengths[3]) / (m - 2))
+            res = _solve(X, scale, samples, options, options.mips.w_boundary)
         solves.append(res)
         X = res.X
-        if res.untangle_iterations and res.energy == np.inf:
+        if res.energy == np.inf:
             raise PanelError(panel, f"could not untangle the control net ({n} x {m}); try other corners "
                                     "or a finer knot span")
 
@@ -229,7 +267,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         "seconds": time.perf_counter() - start,
         "seconds_fit": t_fit,
         "mips_iterations": sum(r.iterations for r in solves),
-        "untangle_iterations": sum(r.untangle_iterations for r in solves),
+        "untangle_iterations": sum(r.untangle_iterations for r in solves) + failed_iterations,
         "mips_converged": all(r.converged for r in solves),
         "mips_energy": solves[-1].energy,
         "adapt_rounds": rounds,
@@ -270,8 +308,6 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     """Conform every panel (a failing panel is recorded, the others go on) and map the
     seams between converted panels to their patches. corners: panel name -> 4 corners
     (overrides); on_panel(panel, report or None, error or None) after each panel."""
-    import dataclasses
-
     from .seams import map_seam, seam_hints
 
     options = options or ConformOptions()
