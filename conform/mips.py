@@ -122,7 +122,7 @@ class MipsOptions:
     max_iterations: int = 60
     tolerance: float = 1e-7  # stop when the Newton decrement / 2 < tolerance * E
     untangle_iterations: int = 100
-    area_weight: float = 1.0  # weight of the area term d / d0 + d0 / d (d0: mean det)
+    area_weight: float = 10.0  # weight of the area term d / d0 + d0 / d (d0: mean det)
 
 
 @dataclass

@@ -44,6 +44,18 @@ class BarrierEnergy(Energy):
             self._C = C.copy()
         return self._x
 
+    def stencils(self):
+        """Control points under each cloth triangle: contacts against obstacles couple only
+        these, so the Hessian pattern holds them (distant self-contact still falls outside
+        and is moved onto the diagonal, see assembly.add_dof_matrix)."""
+        W = self.contact.W.tocsr()
+        per_vertex = -np.ones((W.shape[0], 9), np.int64)
+        counts = np.diff(W.indptr)
+        rows = np.repeat(np.arange(W.shape[0]), counts)
+        slot = np.arange(W.indices.size) - W.indptr[rows]
+        per_vertex[rows, slot] = W.indices
+        return [per_vertex[self.contact.cloth_faces].reshape(len(self.contact.cloth_faces), 27)]
+
     @property
     def n_collisions(self) -> int:
         return len(self.collisions)
