@@ -184,10 +184,10 @@ def _outline_of_polygon(panel: Panel) -> Outline:
     if np.any(seg <= 1e-12 * max(float(np.ptp(P, axis=0).max()), 1e-300)):
         raise PanelError(panel, "the outline repeats a point (zero-length edge)")
     area = polygon_area(P)
-    if area <= 0:
-        raise PanelError(panel, "the outline runs clockwise or encloses no area")
     outline = _make(panel, np.arange(P.shape[0]), P, panel.area if panel.area is not None else area)
     _check_simple(panel, outline)
+    if area <= 0:
+        raise PanelError(panel, "the outline runs clockwise or encloses no area")
     return outline
 
 

@@ -134,27 +134,36 @@ def boundary_area(X: np.ndarray) -> float:
     return total
 
 
-def match_area(X: np.ndarray, area: float, iterations: int = 3) -> tuple[np.ndarray, float]:
+def match_area(X: np.ndarray, area: float, iterations: int = 6) -> tuple[np.ndarray, float]:
     """Offset the boundary rows (corners excepted) along their outward normals by one
     common distance so the enclosed area equals `area`; returns the net and the offset (m).
     A least-squares side fit is close to area-neutral but not exactly; this removes the
-    rest, so the patch keeps the panel's area (its mass) to round-off."""
-    X = X.copy()
-    total = 0.0
-    for _ in range(iterations):
-        rows = side_rows(X)
-        perimeter = sum(float(np.linalg.norm(np.diff(r, axis=0), axis=1).sum()) for r in rows)
-        delta = (area - boundary_area(X)) / perimeter
-        if abs(delta) < 1e-15:
-            break
-        total += delta
+    rest, so the patch keeps the panel's area (its mass) to round-off. The offset is found
+    by secant steps, starting from area change / perimeter."""
+    rows = side_rows(X)
+    normals = []
+    for r in rows:
+        tang = np.gradient(r, axis=0)
+        nrm = np.stack([tang[:, 1], -tang[:, 0]], axis=1)  # outward for a counter-clockwise loop
+        normals.append(nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300))
+
+    def moved(delta):
+        Y = X.copy()
         new = []
-        for r in rows:
-            tang = np.gradient(r, axis=0)
-            normal = np.stack([tang[:, 1], -tang[:, 0]], axis=1)  # outward for a CCW loop
-            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        for r, nrm in zip(rows, normals):
             r = r.copy()
-            r[1:-1] += delta * normal[1:-1]
+            r[1:-1] += delta * nrm[1:-1]
             new.append(r)
-        X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = new
-    return X, total
+        Y[:, 0], Y[-1, :], Y[::-1, -1], Y[0, ::-1] = new
+        return Y
+
+    perimeter = sum(float(np.linalg.norm(np.diff(r, axis=0), axis=1).sum()) for r in rows)
+    d0, a0 = 0.0, boundary_area(X)
+    d1 = (area - a0) / perimeter
+    for _ in range(iterations):
+        if abs(area - a0) <= 1e-14 * abs(area) or d1 == d0:
+            break
+        a1 = boundary_area(moved(d1))
+        slope = (a1 - a0) / (d1 - d0)
+        d0, a0, d1 = d1, a1, d1 + (area - a1) / slope if slope != 0 else d1
+    return moved(d0), d0

@@ -5,15 +5,18 @@ polyline vertex plus points in between, each weighted by the arc length it stand
 given chord-length parameters u_a = (n - 2) s_a / L, and fitted by n control points with the
 end points pinned to the corners and a second-difference penalty against zig-zags:
 
-    min_C  sum_a (w_a / L) |C(u_a) - P_a|^2  +  lam / (n - 2) sum_i |C_i-1 - 2 C_i + C_i+1|^2
+    min_C  sum_a (w_a / L) |C(u_a) - P_a|^2  +  lam / (n - 2) sum_i |D2 C|_i^2
+
+D2 takes second divided differences over the Greville abscissae (C_i-1 - 2 C_i + C_i+1
+inside), so a uniformly parametrised straight line costs nothing. Both terms are mean
+squares in m^2, so `lam` means the same on every side and at every resolution; on a smooth
+curve |D2 C| ~ h^2 / R is tiny and the penalty only matters where the data leave control
+points undetermined (spans shorter than the input edges).
 
 The fit error that matters is the largest distance, so the weights are then reweighted a
 few times, w_a <- w_a (1 + (r_a / mean r)^2) (iteratively reweighted least squares towards
 a minimax fit): this about halves the error at sharp features such as dart tips at the
-same control count. Both terms are mean squares in m^2, so `lam` means the same on every side and at every
-resolution; on a smooth curve |second difference| ~ h^2 / R is tiny and the penalty only
-matters where the data leave control points undetermined (spans shorter than the input
-edges).
+same control count.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from garment.model import Patch
 from sim.bspline import basis_matrix
 
 LAMBDA = 1e-4
@@ -68,10 +72,14 @@ def sample_polyline(poly: np.ndarray, spacing: float) -> SideSamples:
 
 
 def second_difference(n: int) -> np.ndarray:
-    """(n - 2, n) matrix of C_i-1 - 2 C_i + C_i+1."""
+    """(n - 2, n) matrix of second divided differences of control points over their
+    Greville abscissae 0, 0.5, 1.5, ..., n-2: C_i-1 - 2 C_i + C_i+1 inside, weighted at
+    the ends so that a uniformly parametrised straight line (linear precision) costs 0."""
+    g = Patch.greville(n)
     D = np.zeros((n - 2, n))
-    i = np.arange(n - 2)
-    D[i, i], D[i, i + 1], D[i, i + 2] = 1.0, -2.0, 1.0
+    for i in range(1, n - 1):
+        a, b = 1.0 / (g[i] - g[i - 1]), 1.0 / (g[i + 1] - g[i])
+        D[i - 1, i - 1], D[i - 1, i], D[i - 1, i + 1] = a, -(a + b), b
     return D
 
 
@@ -98,13 +106,14 @@ def fit_side_reweighted(side: SideSamples, n: int, lam: float = LAMBDA,
                         iterations: int = REWEIGHT) -> tuple[np.ndarray, SideSamples]:
     """fit_side with IRLS towards the minimax fit; returns the control points and the
     samples with their final weights."""
+    floor = 1e-7 * side.length  # residuals below this are round-off: no reweighting
     for it in range(iterations + 1):
         C = fit_side(side, n, lam)
         if it == iterations:
             break
         r = np.linalg.norm(evaluate(C, side.parameters(n)) - side.points, axis=1)
         mean = float(r.mean())
-        if mean <= 0.0:
+        if mean <= floor:
             break
         w = side.w * (1.0 + (r / mean) ** 2)
         side = dataclasses.replace(side, w=w * (side.w.sum() / w.sum()))  # same total weight

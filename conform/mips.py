@@ -120,7 +120,7 @@ class BoundaryFit:
 class MipsOptions:
     w_boundary: float = np.inf  # weight of E_fit; inf fixes the boundary rows
     max_iterations: int = 60
-    tolerance: float = 1e-7  # stop when the Newton decrement / 2 < tolerance * E
+    tolerance: float = 1e-6  # stop when the Newton decrement / 2 < tolerance * E
     untangle_iterations: int = 100
     area_weight: float = 10.0  # weight of the area term d / d0 + d0 / d (d0: mean det)
 
@@ -143,7 +143,7 @@ def _chi(d, eps):
     return np.where(d >= 0, 0.5 * (d + r), 0.5 * eps**2 / (r - d))
 
 
-def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True):
+def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True, project=True):
     """f, df/dY (Q, 4) and projected d2f/dY2 (Q, 4, 4) of
     f = (|y|^2 / c)^POWER + area_weight (c / d0 + d0 / c), y = Y * scale, c = chi(det y, eps)
     (c = det y when eps == 0)."""
@@ -176,8 +176,9 @@ def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True):
     D2[0, 3] = D2[3, 0] = 1.0
     D2[1, 2] = D2[2, 1] = -1.0
     H += (gc * c1)[:, None, None] * D2
-    lam, V = np.linalg.eigh(H)
-    H = np.einsum("qij,qj,qkj->qik", V, np.maximum(lam, 0.0), V)
+    if project:
+        lam, V = np.linalg.eigh(H)
+        H = np.einsum("qij,qj,qkj->qik", V, np.maximum(lam, 0.0), V)
     S = scale
     return f, g * S, H * S[None, :, None] * S[None, None, :]
 

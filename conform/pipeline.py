@@ -28,7 +28,7 @@ from .curve_fit import LAMBDA, SideSamples, basis_matrix, fit_side_reweighted, s
 from .lift import lift
 from .mips import BoundaryFit, MipsOptions
 from .mips import refine as mips_refine
-from .quality import polyline_distance, report
+from .quality import lift_strain, polyline_distance, report
 
 
 @dataclass
@@ -264,6 +264,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
     patch = Patch(panel.name, X, world)
     rep = report(outline, X, tol)
     rep.update({
+        "lift_max_strain": lift_strain(X, world),
         "seconds": time.perf_counter() - start,
         "seconds_fit": t_fit,
         "mips_iterations": sum(r.iterations for r in solves),
@@ -295,6 +296,9 @@ def provenance(panel: Panel, outline: Outline, sides: Sides) -> dict:
         if panel.faces is not None:
             # The input boundary edges are the consecutive pairs of these vertex ids.
             entry["boundary_vertex_ids"] = [int(ids[outline.vertices[p]]) for p in pos]
+        else:
+            # Outline panels: the first and last outline point of the side (panel indices).
+            entry["outline_range"] = [int(outline.vertices[pos[0]]), int(outline.vertices[pos[-1]])]
         if panel.segment_edges is not None:
             seg = panel.segment_edges[outline.vertices[pos[:-1]]]
             edges = [int(e) for k, e in enumerate(seg) if k == 0 or e != seg[k - 1]]

@@ -7,6 +7,8 @@
 - corner angles: the patch's interior angles at its four corners, degrees;
 - skew: the smallest angle between X_u and X_v over the guard points, degrees;
   aspect: the largest singular-value ratio of the scaled Jacobian;
+- lift strain: the largest relative change of length between the rest and the lifted 3D
+  patch, sampled four times per knot span (0 for a rigid placement);
 - area: the rest area that the simulator's rules integrate (reduced rule, and 2 x 2 Gauss,
   which is exact for the patch: det is bicubic per span) against the input's area, %.
 """
@@ -109,6 +111,7 @@ def report(outline: Outline, X: np.ndarray, tolerance: float) -> dict:
         "boundary_error_mm": 1e3 * err,
         "boundary_error_mean_mm": 1e3 * mean_err,
         "tolerance_mm": 1e3 * tolerance,
+        "panel_diameter_mm": 1e3 * outline.diameter,
         "inverted_points": int((d <= 0).sum()),
         "min_jacobian_ratio": float(ratio.min()),
         "max_jacobian_ratio": float(ratio.max()),
@@ -128,3 +131,20 @@ def report(outline: Outline, X: np.ndarray, tolerance: float) -> dict:
             rep[f"area_error_{name}_pct"] = 100.0 * (area - outline.area) / outline.area
         rep["area_error_pct"] = rep.get("area_error_reduced_pct", rep["area_error_gauss2_pct"])
     return rep
+
+
+def lift_strain(X: np.ndarray, C: np.ndarray, per_span: int = 4) -> float:
+    """Largest |length in 3D / length at rest - 1| between neighbouring samples."""
+    from sim.bspline import basis_matrix
+
+    n, m = X.shape[:2]
+    Bu = basis_matrix(np.linspace(0, n - 2, per_span * (n - 2) + 1), n)
+    Bv = basis_matrix(np.linspace(0, m - 2, per_span * (m - 2) + 1), m)
+    S = np.einsum("ai,bj,ijd->abd", Bu, Bv, X, optimize=True)
+    W = np.einsum("ai,bj,ijd->abd", Bu, Bv, C, optimize=True)
+    worst = 0.0
+    for axis in (0, 1):
+        ds = np.linalg.norm(np.diff(S, axis=axis), axis=-1)
+        dw = np.linalg.norm(np.diff(W, axis=axis), axis=-1)
+        worst = max(worst, float(np.abs(dw / ds - 1.0).max()))
+    return worst

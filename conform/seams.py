@@ -75,15 +75,15 @@ def invert(X: np.ndarray, points: np.ndarray, iterations: int = 20) -> np.ndarra
     n, m = X.shape[:2]
     gu = np.linspace(0, n - 2, 8 * (n - 2) + 1)
     gv = np.linspace(0, m - 2, 8 * (m - 2) + 1)
-    G = np.einsum("ai,bj,ijd->abd", basis_matrix(gu, n), basis_matrix(gv, m), X).reshape(-1, 2)
+    G = np.einsum("ai,bj,ijd->abd", basis_matrix(gu, n), basis_matrix(gv, m), X, optimize=True).reshape(-1, 2)
     k = np.argmin(((points[:, None, :] - G[None]) ** 2).sum(-1), axis=1)
     u, v = gu[k // gv.size].copy(), gv[k % gv.size].copy()
     for _ in range(iterations):
         Bu, Bv = basis_matrix(u, n), basis_matrix(v, m)
         dBu, dBv = basis_matrix(u, n, 1), basis_matrix(v, m, 1)
-        P = np.einsum("ki,kj,ijd->kd", Bu, Bv, X)
-        Xu = np.einsum("ki,kj,ijd->kd", dBu, Bv, X)
-        Xv = np.einsum("ki,kj,ijd->kd", Bu, dBv, X)
+        P = np.einsum("ki,kj,ijd->kd", Bu, Bv, X, optimize=True)
+        Xu = np.einsum("ki,kj,ijd->kd", dBu, Bv, X, optimize=True)
+        Xv = np.einsum("ki,kj,ijd->kd", Bu, dBv, X, optimize=True)
         J = np.stack([Xu, Xv], axis=2)
         step = np.linalg.solve(J, (points - P)[..., None])[..., 0]
         u = np.clip(u + step[:, 0], 0, n - 2)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from . import cloth, plate, wrinkle
+from . import conform as conform_bench
 
 
 @dataclass(frozen=True)
@@ -36,5 +37,7 @@ BENCHMARKS = {
                   cloth.runner("drape"), (75, 100, 125), cloth.COLUMNS),
         Benchmark("shear", "shear test (Kim 2020), cost per step",
                   cloth.runner("shear"), (75, 100, 125), cloth.COLUMNS),
+        Benchmark("conform", "quadrature error on conformed distorted patches (aspect, skew, bend sweep)",
+                  conform_bench.run, (10, 20), conform_bench.COLUMNS, reports_steps=False),
     )
 }

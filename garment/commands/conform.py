@@ -96,6 +96,11 @@ def run(args) -> int:
     options = ConformOptions(knot_span=span, control_points=counts, refine=args.refine,
                              tolerance=None if args.tolerance is None else 1e-3 * args.tolerance,
                              mips=MipsOptions())
+    out_dir = Path(args.output)
+    try:  # fail before the work, not after it
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"{out_dir}: cannot create the output directory ({e.strerror})") from None
     panels, seams = read_input(args.input, spacing=min(span / 6.0, 0.003))
     if args.panels:
         wanted = [p.strip() for p in args.panels.split(",") if p.strip()]
@@ -117,7 +122,10 @@ def run(args) -> int:
                                              f"{rep['seconds']:.2f} s"))
 
         ps = conform_all(panels, seams, options, corners=corners, on_panel=on_panel)
-    out = save_patchset(Path(args.output) / "patches.json", ps)
+    try:
+        out = save_patchset(out_dir / "patches.json", ps)
+    except OSError as e:
+        raise InputError(f"{out_dir / 'patches.json'}: cannot write ({e.strerror})") from None
     if args.preview is not None:
         render_preview(ps, panels, args.preview)
     failed = [r for r in rows if r["status"] != "ok"]
@@ -181,9 +189,9 @@ def render_preview(ps, panels, path) -> None:
             u = np.linspace(0, n - 2, k * (n - 2) + 1)
             v = np.linspace(0, m - 2, k * (m - 2) + 1)
             Bu, Bv = basis_matrix(u, n), basis_matrix(v, m)
-            S = np.einsum("ai,bj,ijd->abd", Bu, Bv, X)
-            Su = np.einsum("ai,bj,ijd->abd", basis_matrix(u, n, 1), Bv, X)
-            Sv = np.einsum("ai,bj,ijd->abd", Bu, basis_matrix(v, m, 1), X)
+            S = np.einsum("ai,bj,ijd->abd", Bu, Bv, X, optimize=True)
+            Su = np.einsum("ai,bj,ijd->abd", basis_matrix(u, n, 1), Bv, X, optimize=True)
+            Sv = np.einsum("ai,bj,ijd->abd", Bu, basis_matrix(v, m, 1), X, optimize=True)
             det = Su[..., 0] * Sv[..., 1] - Su[..., 1] * Sv[..., 0]
             faces = grid_faces(u.size, v.size)
             surf = pv.PolyData(lift(S), np.column_stack([np.full(len(faces), 3), faces]).ravel())

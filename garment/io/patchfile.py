@@ -17,6 +17,7 @@
             "sides": {"v0": {...}, "u1": {...}, "v1": {...}, "u0": {...}} with, per side,
               "boundary_vertex_ids": the input boundary vertices it covers, in order
               (meshes: the input boundary edges are consecutive pairs), and/or
+              "outline_range": the first and last outline point (outline inputs), and
               "pattern_edges": the pattern edges it covers, in order (GarmentCode)
           },
           "quality": {the report of conform.quality: boundary_error_mm, min/max

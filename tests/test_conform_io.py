@@ -1,0 +1,242 @@
+"""Conforming from files: the OBJ panel reader, bad panels, the patch file and the
+`garment conform` command (partial failure, JSON output, corner overrides, preview)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conform import ConformOptions, PanelError, conform_all
+from conform.boundary import extract_outline
+from conform.seams import invert
+from garment.cli import main
+from garment.errors import InputError
+from garment.io.panels import read_panels
+from garment.io.patchfile import load_patchset, save_patchset
+from sim.bspline import basis_matrix
+
+
+def grid(nx, ny, size=(0.2, 0.1), origin=(0.0, 0.0)):
+    """Vertices (V, 2) and CCW triangles of an nx x ny vertex grid."""
+    x, y = np.meshgrid(np.linspace(0, size[0], nx), np.linspace(0, size[1], ny), indexing="ij")
+    V = np.stack([x.ravel(), y.ravel()], 1) + origin
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+    a = (i * ny + j).ravel()
+    F = np.concatenate([np.stack([a, a + ny, a + ny + 1], 1), np.stack([a, a + ny + 1, a + 1], 1)])
+    return V, F
+
+
+def write_obj(path, panels, seams=()):
+    """panels: [(name, V2 (k, 2), F (f, 3) local)] -> OBJ with v (lifted to z = 0.5 y,
+    a sheared placement), vt = rest, one group per panel; seams: [[(i, j, k, w), ...]]."""
+    lines, offset = [], 0
+    faces = []
+    for name, V, F in panels:
+        for x, y in V:
+            lines.append(f"v {x:.9g} {y:.9g} {0.5 * y:.9g}")
+            lines.append(f"vt {x:.9g} {y:.9g}")
+        faces.append((name, F + offset + 1))
+        offset += len(V)
+    for name, F in faces:
+        lines.append(f"g {name}")
+        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in F]
+    for stitches in seams:
+        lines.append(f"seam {len(stitches)}")
+        lines += [f"stitch {i} {j} {k} {w}" for i, j, k, w in stitches]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+# ------------------------------------------------------------------------------ bad panels
+
+
+def bad_panels():
+    V, F = grid(6, 5)
+    out = {}
+    # A hole: drop the two triangles of one interior cell.
+    cell = 2 * 4 + 2
+    keep = np.setdiff1d(np.arange(len(F)), [cell, cell + len(F) // 2])
+    out["hole"] = (V, F[keep], "hole")
+    # Two separate pieces.
+    V2, F2 = grid(3, 3, (0.05, 0.05), (0.5, 0.0))
+    out["two_pieces"] = (np.concatenate([V, V2]), np.concatenate([F, F2 + len(V)]), "2 boundary loops")
+    # A non-manifold edge: a third triangle on an interior edge.
+    extra = np.concatenate([V, [[0.05, 0.2]]])
+    out["nonmanifold"] = (extra, np.concatenate([F, [[F[7, 0], F[7, 1], len(V)]]]), "non-manifold edge")
+    # A degenerate (zero-area) triangle.
+    Vd = np.concatenate([V, [[0.1, -0.02], [0.14, -0.02], [0.18, -0.02]]])
+    out["degenerate"] = (Vd, np.concatenate([F, [[len(V), len(V) + 1, len(V) + 2]]]), "degenerate")
+    # Folded layout: one triangle flipped.
+    Ff = F.copy()
+    Ff[3] = Ff[3, ::-1]
+    out["folded"] = (V, Ff, "folds over")
+    # A band spiralling past a full turn: every triangle counter-clockwise, outline crossing.
+    t = np.linspace(0, 2.4 * np.pi, 40)
+    r0, r1 = 0.1 + 0.003 * t, 0.14 + 0.003 * t  # 2 cm further out per turn, 4 cm wide
+    Vs = np.concatenate([np.stack([r0 * np.cos(t), r0 * np.sin(t)], 1), np.stack([r1 * np.cos(t), r1 * np.sin(t)], 1)])
+    k = np.arange(39)
+    Fs = np.concatenate([np.stack([k, k + 1, k + 41], 1), np.stack([k, k + 41, k + 40], 1)])
+    out["spiral"] = (Vs, Fs, "crosses itself")
+    # A single triangle: three boundary vertices.
+    out["triangle"] = (np.array([[0, 0], [0.1, 0], [0, 0.1]], float), np.array([[0, 1, 2]]), "only 3 boundary vertices")
+    return out
+
+
+@pytest.mark.parametrize("name", list(bad_panels()))
+def test_bad_panels_are_rejected_with_the_panel_named(tmp_path, name):
+    V, F, fragment = bad_panels()[name]
+    path = write_obj(tmp_path / "bad.obj", [(name, V, F)])
+    (panel,), _ = read_panels(path)
+    with pytest.raises(PanelError) as e:
+        extract_outline(panel)
+    msg = str(e.value)
+    assert fragment in msg and f"panel {name}" in msg and "bad.obj" in msg
+
+
+def test_garmentcode_outline_that_crosses_itself(tmp_path):
+    from garment.io.garmentcode import read_garmentcode
+
+    spec = {"pattern": {"panels": {"bow": {
+        "translation": [0, 0, 0], "rotation": [0, 0, 0],
+        "vertices": [[0, 0], [20, 20], [20, 0], [0, 20]],
+        "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]}, {"endpoints": [2, 3]}, {"endpoints": [3, 0]}]}},
+        "stitches": []}, "properties": {"units_in_meter": 100}}
+    path = tmp_path / "bow.json"
+    path.write_text(json.dumps(spec))
+    (panel,), _ = read_garmentcode(path)
+    with pytest.raises(PanelError, match="panel bow: the outline crosses itself"):
+        extract_outline(panel)
+
+
+def test_unreadable_inputs(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        read_panels(tmp_path / "missing.obj")
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nf 1 2\n")
+    with pytest.raises(InputError, match="bad.obj:2"):
+        read_panels(bad)
+
+
+# --------------------------------------------------------------------- the whole command
+
+
+@pytest.fixture
+def two_panels_and_a_hole(tmp_path):
+    """front (0.2 x 0.1) and back (beside it) sewn along their touching sides, plus a
+    panel with a hole."""
+    Va, Fa = grid(11, 6)
+    Vb, Fb = grid(11, 6, origin=(0.3, 0.0))
+    Vh, Fh, _ = bad_panels()["hole"]
+    ny = 6
+    right_of_a = [10 * ny + j for j in range(ny)]  # x = 0.2
+    left_of_b = [len(Va) + j for j in range(ny)]  # x = 0.3 (global ids)
+    stitches = [(right_of_a[j], left_of_b[j], left_of_b[j], 0.0) for j in range(ny)]
+    path = write_obj(tmp_path / "garment.obj", [("front", Va, Fa), ("back", Vb, Fb), ("holey", Vh + [0, 0.5], Fh)],
+                     [stitches])
+    return path
+
+
+def test_conform_command_partial_failure(tmp_path, capsys, two_panels_and_a_hole):
+    out = tmp_path / "out"
+    code = main(["conform", str(two_panels_and_a_hole), "-o", str(out), "--json", "--knot-span", "25"])
+    assert code == 1  # one panel failed, the others converted
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    rows = {r["panel"]: r for r in doc["panels"]}
+    assert rows["holey"]["status"] == "failed" and "hole" in rows["holey"]["error"]
+    assert "panel holey" in captured.err and "Traceback" not in captured.err
+    for name in ("front", "back"):
+        r = rows[name]
+        assert r["status"] == "ok" and r["control_points"] == [10, 6]
+        assert r["boundary_error_mm"] < 1e-6 and r["min_jacobian_ratio"] > 0.99
+        assert abs(r["area_error_pct"]) < 1e-9 and r["seconds"] < 2.0
+        assert set(r) >= {"panel", "status", "control_points", "boundary_error_mm", "min_jacobian_ratio",
+                          "area_error_pct", "seconds"}
+
+    ps = load_patchset(out / "patches.json")
+    assert [p.name for p in ps.patches] == ["front", "back"]
+    assert "holey" in ps.failures
+    np.testing.assert_allclose(ps.patch("front").world[..., 2], 0.5 * ps.patch("front").rest[..., 1], atol=1e-9)
+    # The seam: front's side u1 (x = 0.2) sewn to back's side u0 (x = 0.3), both along v.
+    (seam,) = ps.seams
+    assert (seam.patch_a, seam.patch_b) == ("front", "back")
+    assert [(iv.side, iv.t0, iv.t1) for iv in seam.intervals_a] == [("u1", 0.0, 4.0)]
+    assert [(iv.side, iv.t0, iv.t1) for iv in seam.intervals_b] == [("u0", 0.0, 4.0)]
+    np.testing.assert_allclose(seam.uv_a[:, 1], seam.uv_b[:, 1], atol=1e-9)
+    # Provenance: the corner vertices and each side's input boundary vertices.
+    prov = ps.provenance["front"]
+    assert prov["corner_vertex_ids"] == [0, 60, 65, 5]
+    assert prov["sides"]["u1"]["boundary_vertex_ids"] == list(range(60, 66))
+    # The file round-trips.
+    save_patchset(tmp_path / "again.json", ps)
+    again = load_patchset(tmp_path / "again.json")
+    np.testing.assert_array_equal(again.patch("back").rest, ps.patch("back").rest)
+    assert again.seams[0].intervals_b[0].side == "u0"
+
+
+def test_conform_command_table_corners_and_preview(tmp_path, capsys, two_panels_and_a_hole):
+    out = tmp_path / "out"
+    png = tmp_path / "preview.png"
+    code = main(["conform", str(two_panels_and_a_hole), "-o", str(out), "--panels", "front",
+                 "--corners", "front=12,60,65,17", "--control-points", "8x6", "--preview", str(png), "-q"])
+    assert code == 0
+    table = capsys.readouterr().out
+    assert "front" in table and "8x6" in table and "holey" not in table
+    ps = load_patchset(out / "patches.json")
+    assert ps.provenance["front"]["corner_vertex_ids"] == [12, 60, 65, 17]
+    np.testing.assert_allclose(ps.patch("front").rest[0, 0], [0.04, 0.0])
+    from PIL import Image
+
+    img = np.asarray(Image.open(png).convert("RGB"))
+    assert img.shape[0] > 500 and (img < 200).any()  # something was drawn
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--corners", "front=1,2,3"], "exactly 4"),
+    (["--corners", "nowhere=1,2,3,4"], "no panel named nowhere"),
+    (["--corners", "front=1,2,3,999"], "corner vertex 999 is not on the panel's boundary"),
+    (["--control-points", "4x9"], "N, M >= 5"),
+    (["--panels", "sleeve"], "no panel named sleeve"),
+])
+def test_conform_command_bad_options(tmp_path, capsys, two_panels_and_a_hole, args, fragment):
+    code = main(["conform", str(two_panels_and_a_hole), "-o", str(tmp_path / "o"), "-q", "--panels", "front"] + args)
+    err = capsys.readouterr().err
+    assert code in (1, 2) and fragment in err and "Traceback" not in err
+
+
+def test_output_directory_that_is_a_file(tmp_path, capsys, two_panels_and_a_hole):
+    blocker = tmp_path / "taken"
+    blocker.write_text("")
+    assert main(["conform", str(two_panels_and_a_hole), "-o", str(blocker), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "taken" in err and "output directory" in err and "Traceback" not in err
+
+
+def test_patch_file_errors(tmp_path):
+    bad = tmp_path / "p.json"
+    bad.write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(InputError, match="not a patch file"):
+        load_patchset(bad)
+    bad.write_text(json.dumps({"format": "bspline-garment/patches", "version": 1, "patches": [
+        {"name": "a", "control_points": [5, 5], "rest": [[0, 0]], "world": []}]}))
+    with pytest.raises(InputError, match=r"patches\[0\]"):
+        load_patchset(bad)
+
+
+def test_seam_points_map_back_onto_the_rest_points(two_panels_and_a_hole):
+    panels, seams = read_panels(two_panels_and_a_hole)
+    ps = conform_all(panels[:2], seams, ConformOptions(knot_span=0.03))
+    (seam,) = ps.seams
+    for name, uv, pts in ((seam.patch_a, seam.uv_a, seams[0].points_a), (seam.patch_b, seam.uv_b, seams[0].points_b)):
+        X = ps.patch(name).rest
+        n, m = X.shape[:2]
+        P = np.einsum("ki,kj,ijd->kd", basis_matrix(uv[:, 0], n), basis_matrix(uv[:, 1], m), X)
+        np.testing.assert_allclose(P, pts, atol=1e-9)
+    # Inverting the rest map finds interior points too.
+    X = ps.patch("front").rest
+    uv = invert(X, np.array([[0.05, 0.05], [0.17, 0.02]]))
+    n, m = X.shape[:2]
+    P = np.einsum("ki,kj,ijd->kd", basis_matrix(uv[:, 0], n), basis_matrix(uv[:, 1], m), X)
+    np.testing.assert_allclose(P, [[0.05, 0.05], [0.17, 0.02]], atol=1e-10)
