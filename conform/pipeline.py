@@ -1,13 +1,17 @@
 """One panel -> one quadratic B-spline patch: the whole conforming pipeline.
 
     outline (boundary.py) -> corners (corners.py) -> side fits (curve_fit.py)
-    -> boundary rows + tangential interior start (control_net.py) -> MIPS (mips.py)
+    -> boundary rows, area match, interior start (control_net.py) -> MIPS (mips.py)
     -> optional knot insertion + MIPS again -> lift to 3D (lift.py) -> report (quality.py)
 
 Control counts: opposite sides share a count, from the longer of the two and the target
 knot span (or given). When a side's fit misses the tolerance - max(1 mm, 0.5 % of the
 panel diameter) - the pair's count grows by a quarter and the sides are refitted, up to
-`adapt_rounds` times (not with given counts).
+`adapt_rounds` times; when MIPS cannot untangle the net at all (a boundary that admits no
+valid interior at that resolution, e.g. tabs between deep darts), the longer pair's count
+grows by a quarter and it starts again, up to UNTANGLE_RETRIES times (neither with given
+counts). The boundary rows are the side fits, offset to keep the panel's area, and stay
+fixed during MIPS unless MipsOptions.w_boundary is finite.
 """
 
 from __future__ import annotations
@@ -20,11 +24,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from garment.model import SIDES, Panel, PanelSeam, Patch, PatchSet
+from sim.bspline import basis_matrix
 
 from . import corners as corners_mod
 from .boundary import Outline, PanelError, extract_outline
-from .control_net import assemble_boundary, laplace_start, match_area, refine, tangential_start
-from .curve_fit import LAMBDA, SideSamples, basis_matrix, fit_side_reweighted, sample_polyline, second_difference
+from .control_net import assemble_boundary, laplace_start, match_area, refine, side_rows, tangential_start
+from .curve_fit import LAMBDA, SideSamples, evaluate, fit_side_reweighted, sample_polyline, second_difference
 from .lift import lift
 from .mips import BoundaryFit, MipsOptions
 from .mips import refine as mips_refine
@@ -81,8 +86,6 @@ def tolerance_for(outline: Outline, options: ConformOptions) -> float:
 
 def side_error(poly: np.ndarray, ctrl: np.ndarray) -> float:
     """Two-sided distance between a side polyline and its fitted curve, metres."""
-    from .curve_fit import evaluate
-
     n = ctrl.shape[0]
     curve = evaluate(ctrl, np.linspace(0.0, n - 2.0, 24 * (n - 2) + 1))
     mid = 0.5 * (poly[1:] + poly[:-1])
@@ -116,6 +119,23 @@ def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float):
 UNTANGLE_RETRIES = 3
 
 
+def _grow(count: int) -> int:
+    """A quarter more knot spans."""
+    return int(np.ceil(1.25 * (count - 2))) + 2
+
+
+def _mean_spans(sides: Sides, n: int, m: int) -> tuple[float, float]:
+    """Mean knot-span sizes along u and v, metres."""
+    L = sides.lengths
+    return 0.5 * (L[0] + L[2]) / (n - 2), 0.5 * (L[1] + L[3]) / (m - 2)
+
+
+def _spacing(spacing: float, sides: Sides, n: int, m: int) -> float:
+    """Side sampling: at least four samples per knot span."""
+    L = sides.lengths
+    return min(spacing, 0.25 * min(max(L[0], L[2]) / (n - 2), max(L[1], L[3]) / (m - 2)))
+
+
 def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOptions, w_boundary: float):
     """MIPS on the net X whose boundary rows are the side fits: the boundary fixed
     (w_boundary = inf) or held by the penalty w_boundary E_fit, anchored to those rows."""
@@ -125,9 +145,6 @@ def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOpt
     if not np.isfinite(w_boundary):
         fixed[0, :] = fixed[-1, :] = fixed[:, 0] = fixed[:, -1] = True
     # Targets on the current boundary curves (area-corrected fits), so E_fit = 0 there.
-    from .control_net import side_rows
-    from .curve_fit import evaluate
-
     anchored = [dataclasses.replace(s, points=evaluate(row, s.parameters(row.shape[0])))
                 for s, row in zip(samples, side_rows(X))]
     bt = boundary_term(anchored, n, m, options.lam, float(np.sqrt(scale[0] * scale[1])))
@@ -210,15 +227,14 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
     while options.control_points is None and rounds < options.adapt_rounds and errors.max() > 0.8 * tol:
         rounds += 1
         if max(errors[0], errors[2]) > 0.8 * tol:
-            n = int(np.ceil(1.25 * (n - 2))) + 2
+            n = _grow(n)
         if max(errors[1], errors[3]) > 0.8 * tol:
-            m = int(np.ceil(1.25 * (m - 2))) + 2
-        spacing = min(spacing, 0.25 * min(sides.lengths[[0, 2]].max() / (n - 2),
-                                          sides.lengths[[1, 3]].max() / (m - 2)))
+            m = _grow(m)
+        spacing = _spacing(spacing, sides, n, m)
         samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
 
-    # Interior start (the tangential projection, or a harmonic net where that folds
-    # less) and MIPS, then knot-insertion levels.
+    # Boundary rows with the panel's area, the interior start (the tangential projection,
+    # or a harmonic net where that folds less), MIPS; then knot-insertion levels.
     Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
     X = interior_start(Xb)
     t_fit = time.perf_counter() - start
@@ -228,32 +244,28 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         if level > 0:
             X = refine(X)
             n, m = X.shape[:2]
-            spacing = min(spacing, 0.25 * min(sides.lengths) / max(n, m))
+            spacing = _spacing(spacing, sides, n, m)
             samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
             Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
             X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = Xb[:, 0], Xb[-1, :], Xb[::-1, -1], Xb[0, ::-1]
-        scale = (0.5 * (sides.lengths[0] + sides.lengths[2]) / (n - 2),
-                 0.5 * (sides.lengths[1] + sides.lengths[3]) / (m - 2))
-        res = _solve(X, scale, samples, options, options.mips.w_boundary)
+        res = _solve(X, _mean_spans(sides, n, m), samples, options, options.mips.w_boundary)
         retries = 0
         while res.energy == np.inf and options.control_points is None and retries < UNTANGLE_RETRIES:
-            # No valid interior at this resolution (typically a tab between darts, which
-            # crowds the rows along the other pair of sides): more control points along
-            # the longer pair of sides, refit, start again.
+            # No valid interior at this resolution (typically tabs between darts crowding
+            # the rows along the other pair of sides): more control points along the
+            # longer pair of sides, refit, start again.
             retries += 1
             failed_iterations += res.untangle_iterations
-            if max(sides.lengths[0], sides.lengths[2]) >= max(sides.lengths[1], sides.lengths[3]):
-                n = int(np.ceil(1.25 * (n - 2))) + 2
+            L = sides.lengths
+            if max(L[0], L[2]) >= max(L[1], L[3]):
+                n = _grow(n)
             else:
-                m = int(np.ceil(1.25 * (m - 2))) + 2
-            spacing = min(spacing, 0.25 * min(sides.lengths[[0, 2]].max() / (n - 2),
-                                              sides.lengths[[1, 3]].max() / (m - 2)))
+                m = _grow(m)
+            spacing = _spacing(spacing, sides, n, m)
             samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
             Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
             X = interior_start(Xb)
-            scale = (0.5 * (sides.lengths[0] + sides.lengths[2]) / (n - 2),
-                     0.5 * (sides.lengths[1] + sides.lengths[3]) / (m - 2))
-            res = _solve(X, scale, samples, options, options.mips.w_boundary)
+            res = _solve(X, _mean_spans(sides, n, m), samples, options, options.mips.w_boundary)
         solves.append(res)
         X = res.X
         if res.energy == np.inf:
@@ -320,7 +332,7 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     if unknown:
         from garment.errors import InputError
 
-        raise InputError(f"--corners: no panel named {', '.join(sorted(unknown))}")
+        raise InputError(f"corners: no panel named {', '.join(sorted(unknown))}")
     patches, quality, prov, failures, tol = {}, {}, {}, {}, {}
     for panel in panels:
         hints, avoid = seam_hints(panel.name, seams)

@@ -15,7 +15,6 @@ from garment.model import SIDES, BoundaryInterval, PanelSeam, Patch, PatchSeam
 
 from .control_net import side_rows
 from .curve_fit import project
-from .quality import polyline_distance
 
 
 def seam_hints(panel_name: str, seams: list[PanelSeam]) -> tuple[np.ndarray, np.ndarray]:

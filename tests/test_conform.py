@@ -8,7 +8,7 @@ import pytest
 
 from conform import ConformOptions, conform_panel
 from conform.boundary import extract_outline
-from conform.control_net import assemble_boundary, boundary_area, match_area, refine, refine_1d, tangential_start
+from conform.control_net import boundary_area, match_area, refine, refine_1d, tangential_start
 from conform.corners import pick_corners
 from conform.curve_fit import evaluate, fit_side, fit_side_reweighted, sample_polyline
 from conform.mips import MipsOptions, MipsProblem, _newton_terms, _point_terms, det, rule_points
@@ -141,6 +141,23 @@ def test_mips_gradient_and_newton_step():
     h = 1e-7
     fd = (prob.value(X2 + h * d) - prob.value(X2 - h * d)) / (2 * h)
     assert (g * d).sum() == pytest.approx(fd, rel=1e-6)
+    # The numba kernel's assembled Hessian equals a plain sparse assembly of the per-point
+    # projected Hessians of the reference implementation.
+    import scipy.sparse as sp
+
+    pts = prob.pts
+    _, _, Hq = _point_terms(pts.jacobians(X2), prob.scale, 0.0, prob.options.area_weight, prob.d0)
+    Hq = Hq * (pts.w / prob.W)[:, None, None]
+    Dk = {0: pts.Du, 1: pts.Dv}
+    N = X2.size
+    H_ref = sp.csr_matrix((N, N))
+    for a in range(2):
+        for b in range(2):
+            for dd in range(2):
+                for ee in range(2):
+                    block = (Dk[a].T @ sp.diags(Hq[:, 2 * a + dd, 2 * b + ee]) @ Dk[b]).tocoo()
+                    H_ref = H_ref + sp.csr_matrix((block.data, (2 * block.row + dd, 2 * block.col + ee)), shape=(N, N))
+    assert abs(H - H_ref).max() < 1e-9 * abs(H_ref).max()
     # Newton decreases the energy; the decrement is positive.
     E0, dec, D2 = prob.newton(X2)
     assert dec > 0 and prob.value(X2 + D2) < E0

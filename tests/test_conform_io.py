@@ -240,3 +240,31 @@ def test_seam_points_map_back_onto_the_rest_points(two_panels_and_a_hole):
     n, m = X.shape[:2]
     P = np.einsum("ki,kj,ijd->kd", basis_matrix(uv[:, 0], n), basis_matrix(uv[:, 1], m), X)
     np.testing.assert_allclose(P, [[0.05, 0.05], [0.17, 0.02]], atol=1e-10)
+
+
+def test_flat_meshes_in_other_formats(tmp_path):
+    import trimesh
+
+    Va, Fa = grid(5, 4)
+    Vb, Fb = grid(4, 4, origin=(0.5, 0.0))
+    V = np.concatenate([Va, Vb])
+    F = np.concatenate([Fa, Fb + len(Va)])
+    # Placed on a tilted plane in 3D: the rest layout is that plane's 2D frame.
+    R = np.array([[1, 0, 0], [0, np.cos(0.7), -np.sin(0.7)], [0, np.sin(0.7), np.cos(0.7)]])
+    V3 = np.column_stack([V, np.zeros(len(V))]) @ R.T + [0.1, 0.2, 0.3]
+    path = tmp_path / "flat.ply"
+    trimesh.Trimesh(V3, F, process=False).export(path)
+    panels, seams = read_panels(path)
+    assert [p.name for p in panels] == ["panel0", "panel1"] and seams == []
+    ps = conform_all(panels, [], ConformOptions(knot_span=0.05))
+    assert not ps.failures
+    np.testing.assert_allclose(ps.quality["panel0"]["input_area_m2"], 0.02, rtol=1e-6)  # PLY: float32
+    # The lift reproduces the 3D placement (an isometry of the layout).
+    W = ps.patch("panel0").world
+    d = np.linalg.norm(W[1:] - W[:-1], axis=-1) / np.linalg.norm(np.diff(ps.patch("panel0").rest, axis=0), axis=-1)
+    np.testing.assert_allclose(d, 1.0, atol=1e-5)
+    # A curved mesh without a flat layout is refused.
+    V3[:, 2] += 0.1 * V3[:, 0] ** 2
+    trimesh.Trimesh(V3, F, process=False).export(path)
+    with pytest.raises(InputError, match="not flat"):
+        read_panels(path)

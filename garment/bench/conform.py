@@ -182,11 +182,10 @@ def case(name: str, resolution: int, quadrature: str = "reduced") -> dict:
     X = patch.rest
     C = deformation(X)
     area, masses, energy = rule_quantities(X, C, quadrature)
-    ref_area, ref_masses, ref_energy = gauss_reference(X, C)
+    _, ref_masses, ref_energy = gauss_reference(X, C)
     return {
         "shape": name, "resolution": resolution, "control_points": f"{n}x{m}", "quadrature": quadrature,
         "area_error": abs(area - panel.area) / panel.area,
-        "area_error_vs_patch": abs(area - ref_area) / ref_area,
         "mass_error": float(sp.linalg.norm(masses - ref_masses) / sp.linalg.norm(ref_masses)),
         "energy_error": abs(energy - ref_energy) / ref_energy,
         "min_jacobian_ratio": rep["min_jacobian_ratio"],
