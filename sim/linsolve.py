@@ -15,25 +15,11 @@ class CholeskySolver:
     """Solves H x = b for the lower-triangular CSC matrices of one fixed pattern."""
 
     def __init__(self, A_lower: sp.csc_matrix):
-        self._analyze(A_lower)
+        self._factor = analyze(A_lower, mode="supernodal")
         self.n_factorizations = 0
-        self.n_analyses = 1
-
-    def _analyze(self, A):
-        self._factor = analyze(A, mode="supernodal")
-        self._indptr, self._indices = A.indptr.copy(), A.indices.copy()
-
-    def _same_pattern(self, A) -> bool:
-        return np.array_equal(A.indptr, self._indptr) and np.array_equal(A.indices, self._indices)
 
     def factorize(self, A_lower: sp.csc_matrix) -> float:
-        """Factor A (+ shift I if A is not positive definite); returns the shift used.
-
-        The symbolic analysis is redone only when A's pattern differs from the last one.
-        """
-        if not self._same_pattern(A_lower):
-            self._analyze(A_lower)
-            self.n_analyses += 1
+        """Factor A (+ shift I if A is not positive definite); returns the shift used."""
         shift = 0.0
         scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
         while True:

@@ -38,7 +38,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         g = ip.gradient(C)[free].ravel()
         ip.assemble(C, opts.project)
         t1 = time.perf_counter()
-        ip.solver.factorize(ip.system)
+        ip.solver.factorize(ip.matrix)
         t2 = time.perf_counter()
         p = -ip.solver.solve(g)
         t3 = time.perf_counter()

@@ -32,8 +32,7 @@ class IncrementalPotential:
                 e.add_hessian(None, self.const_data)
         self.data = self.const_data.copy()
         self.matrix = self.pattern.matrix(self.data)
-        self.system = self.matrix  # what the solver factors
-        self.moved_entries = 0
+        self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.solver = CholeskySolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
         # Rows of the free DOFs among all 3 n_cp DOFs, to restrict variable-pattern Hessians.
@@ -52,12 +51,16 @@ class IncrementalPotential:
         return g
 
     def assemble(self, C: np.ndarray, project: bool = True) -> None:
-        """Write the Hessian at C (free DOFs, lower triangle) into `self.system`."""
+        """Write the Hessian at C (free DOFs, lower triangle) into `self.matrix`.
+
+        Variable-pattern (contact) Hessians are merged into the same fixed pattern, so the
+        solver's symbolic analysis never changes."""
         self.data[:] = self.const_data
         for e in self.energies:
             if not e.constant_hessian:
                 e.add_hessian(C, self.data, project)
         extra = [H for e in self.variable if (H := e.hessian_matrix(C, project)) is not None]
+        self.moved_entries = 0
         if extra:
             S = self._select
             self.moved_entries = add_dof_matrix(self.pattern, S @ sum(extra[1:], extra[0]) @ S.T, self.data)

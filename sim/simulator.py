@@ -141,6 +141,8 @@ class Simulator:
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
             self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
 
+        # Initial control points: the contact check starts here and pins move relative to them.
+        self.C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
         self.obstacles = list(obstacles)
         self.barrier = None
         if contact is not None and contact.enabled:
@@ -153,11 +155,10 @@ class Simulator:
         self.potential = IncrementalPotential(self.energies, ~self.pinned)
 
         # State.
-        self.C = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
+        self.C = self.C0.copy()
         self.V = np.zeros_like(self.C)
         self.t = 0.0
         self.step_count = 0
-        self.C0 = self.C.copy()  # initial control points: pins move relative to these
 
     # ------------------------------------------------------------------ construction
     def _contact_energy(self, contact) -> BarrierEnergy:
@@ -168,7 +169,7 @@ class Simulator:
             faces.append(p.topology.faces + offset)
             offset += p.W.shape[0]
         ids = np.concatenate([np.full(p.W.shape[0], k) for k, p in enumerate(self.pieces)])
-        C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
+        C0 = self.C0
         mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact)
         x0 = mesh.vertices(C0)
         if ipctk.has_intersections(mesh.mesh, x0):
