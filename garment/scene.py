@@ -200,7 +200,9 @@ class OutputSpec:
 
 @dataclass
 class ObstacleSpec:
-    """A static collision obstacle: a triangle mesh file, a meshed sphere or a plane.
+    """A collision obstacle: a triangle mesh file, a meshed sphere, a plane, or an animated
+    body (`animation`: an NPZ with verts (T, V, 3) and faces, or a directory of OBJ frames;
+    `fps` overrides the file's frame time; positions interpolate linearly in time).
 
     mesh: path (relative paths resolve against the scene file's folder), scaled by
     `scale`, turned Z-up when `up` = "y", then moved by `translate`. sphere: `center`,
@@ -209,8 +211,10 @@ class ObstacleSpec:
     """
 
     name: str
-    kind: str  # "mesh" | "sphere" | "plane"
+    kind: str  # "mesh" | "sphere" | "plane" | "animation"
     mesh: Path | None = None
+    animation: Path | None = None
+    fps: float | None = None
     scale: float = 1.0
     up: str = "z"
     translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -225,11 +229,13 @@ class ObstacleSpec:
 @dataclass
 class ContactSpec:
     """IPC contact: barrier activation distance dhat (m), stiffness kappa (Pa, area-weighted
-    barrier), friction mu and eps_v (m/s), cloth self-contact on or off."""
+    barrier; `kappa = "adaptive"` in a scene chooses it per step as IPC does,
+    see sim/contact/stiffness.py), friction mu and eps_v (m/s), cloth self-contact on or off."""
 
     enabled: bool = False
     dhat: float = 1e-3
     kappa: float = 1e5
+    adaptive_kappa: bool = False
     mu: float = 0.0
     eps_v: float = 1e-3
     self_contact: bool = True
@@ -319,7 +325,7 @@ _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
 _TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
-_OBSTACLE_KEYS = ("name", "mesh", "scale", "up", "translate", "sphere", "plane")
+_OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane")
 _SPHERE_KEYS = ("center", "radius", "subdivisions")
 _PLANE_KEYS = ("point", "normal", "size")
 _CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact")
@@ -488,9 +494,9 @@ def _read_output(t: _Table) -> OutputSpec:
 
 
 def _read_obstacle(t: _Table, index: int, base: Path) -> ObstacleSpec:
-    kinds = [k for k in ("mesh", "sphere", "plane") if k in t]
+    kinds = [k for k in ("mesh", "animation", "sphere", "plane") if k in t]
     if len(kinds) != 1:
-        t.fail(t.path, f"needs exactly one of 'mesh', 'sphere', 'plane', got {kinds or 'none'}")
+        t.fail(t.path, f"needs exactly one of 'mesh', 'animation', 'sphere', 'plane', got {kinds or 'none'}")
     kind = kinds[0]
     values: dict[str, Any] = {"name": t.string("name") or f"obstacle{index}", "kind": kind}
     if kind == "mesh":
@@ -500,6 +506,13 @@ def _read_obstacle(t: _Table, index: int, base: Path) -> ObstacleSpec:
             t.fail(t.key("mesh"), f"no such file: {mesh}")
         values.update(_given(mesh=mesh, scale=t.number("scale", gt=0), up=t.choice("up", UP_AXES),
                              translate=t.numbers("translate", 3)))
+    elif kind == "animation":
+        anim = Path(t.string("animation", required=True))
+        anim = anim if anim.is_absolute() else base / anim
+        if not anim.exists():
+            t.fail(t.key("animation"), f"no such file or directory: {anim}")
+        values.update(_given(animation=anim, fps=t.number("fps", gt=0), scale=t.number("scale", gt=0),
+                             up=t.choice("up", UP_AXES), translate=t.numbers("translate", 3)))
     elif kind == "sphere":
         sp = t.table("sphere", _SPHERE_KEYS)
         values.update(_given(center=sp.numbers("center", 3), radius=sp.number("radius", required=True, gt=0),
@@ -515,11 +528,13 @@ def _read_contact(root: _Table, has_obstacles: bool) -> ContactSpec:
     present = "contact" in root
     t = root.table("contact", _CONTACT_KEYS)
     enabled = t.read("enabled", _as_bool)
+    adaptive = t.data.get("kappa") == "adaptive"
     return ContactSpec(
         **_given(
             enabled=enabled if enabled is not None else (present or has_obstacles),
             dhat=t.number("dhat", gt=0),
-            kappa=t.number("kappa", gt=0),
+            kappa=None if adaptive else t.number("kappa", gt=0),
+            adaptive_kappa=adaptive or None,
             mu=t.number("mu", ge=0),
             eps_v=t.number("eps_v", gt=0),
             self_contact=t.read("self_contact", _as_bool),

@@ -33,6 +33,8 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
     free = ip.free_points
     E = ip.value(C)
     history = []
+    drive = ip.drive
+    moving = drive is not None and drive.pending
     for it in range(opts.max_iterations):
         t0 = time.perf_counter()
         g = ip.gradient(C)[free].ravel()
@@ -40,7 +42,12 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         t1 = time.perf_counter()
         ip.solver.factorize(ip.matrix)
         t2 = time.perf_counter()
-        p = -ip.solver.solve(g)
+        rhs = g
+        if moving:
+            # Bodies still on their way (sim/contact/drive.py): the cloth step includes the
+            # first-order push of the remaining body motion.
+            rhs = g + ip.coupling(C, drive.remaining())[free].ravel()
+        p = -ip.solver.solve(rhs)
         t3 = time.perf_counter()
         stats.t_assembly += t1 - t0
         stats.t_factorization += t2 - t1
@@ -49,7 +56,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if opts.record_gradients:
             history.append(float(np.linalg.norm(g)))
         stats.residual = float(np.abs(p).max(initial=0.0)) / opts.dt
-        if stats.residual < opts.tol:
+        if stats.residual < opts.tol and not moving:
             stats.converged = True
             break
         # Backtracking (Armijo) line search on the full potential, started from the
@@ -60,10 +67,20 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if ip.variable:
             trial[free] = C[free] + step
             t_ccd = time.perf_counter()
-            alpha = ip.max_step(C, trial)
+            alpha = ip.max_step(C, trial, drive.target if moving else None)
             stats.extra["t_ccd"] = stats.extra.get("t_ccd", 0.0) + time.perf_counter() - t_ccd
         else:
             alpha = 1.0
+        if moving:
+            # Prescribed motion: go as far as CCD allows, without the energy test.
+            trial[free] = C[free] + alpha * step
+            drive.advance(alpha)
+            C, E = trial, ip.value(trial)
+            stats.line_search_steps += 1
+            stats.t_line_search += time.perf_counter() - t3
+            # A body stopped by trapped cloth stays behind for this step.
+            moving = drive.pending and alpha > opts.min_step
+            continue
         while True:
             trial[free] = C[free] + alpha * step
             E_new = ip.value(trial)
@@ -78,6 +95,8 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if alpha < opts.min_step:
             break  # no descent possible along p: stationary to round-off
         C, E = trial, E_new
+    if drive is not None and drive.animated:
+        stats.extra["body_lag"] = drive.lag()
     stats.energy = E
     if opts.record_gradients:
         stats.extra["gradient_norms"] = history

@@ -35,6 +35,7 @@ class IncrementalPotential:
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.solver = CholeskySolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
+        self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         # Rows of the free DOFs among all 3 n_cp DOFs, to restrict variable-pattern Hessians.
         dofs = (3 * self.free_points[:, None] + np.arange(3)).ravel()
         self._select = sp.csr_matrix((np.ones(dofs.size), (np.arange(dofs.size), dofs)),
@@ -65,9 +66,14 @@ class IncrementalPotential:
             S = self._select
             self.moved_entries = add_dof_matrix(self.pattern, S @ sum(extra[1:], extra[0]) @ S.T, self.data)
 
-    def max_step(self, C0: np.ndarray, C1: np.ndarray) -> float:
-        """Largest fraction of C0 -> C1 every energy allows (collision-free for contact)."""
-        return min([1.0] + [e.max_step(C0, C1) for e in self.variable])
+    def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:
+        """Largest fraction of C0 -> C1 every energy allows (collision-free for contact),
+        with the bodies moving to B1 (when given) meanwhile."""
+        return min([1.0] + [e.max_step(C0, C1, B1) for e in self.variable])
+
+    def coupling(self, C: np.ndarray, dB: np.ndarray) -> np.ndarray:
+        """(n_cp, 3) first-order gradient change when the bodies move by dB."""
+        return sum((e.coupling(C, dB) for e in self.variable), np.zeros((self.n_cp, 3)))
 
     def full_hessian(self):
         """The assembled symmetric matrix (both triangles), for tests and diagnostics."""

@@ -21,7 +21,9 @@ from garment.model import Patch
 import ipctk
 
 from . import quadrature
+from .contact.drive import BodyDrive
 from .contact.mesh import ContactMesh
+from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
 from .energies.barrier import BarrierEnergy
@@ -145,14 +147,21 @@ class Simulator:
         self.C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
         self.obstacles = list(obstacles)
         self.barrier = None
+        self.drive = None
+        self.stiffness = None
         if contact is not None and contact.enabled:
             self.barrier = self._contact_energy(contact)
             self.energies.append(self.barrier)
+            self.drive = BodyDrive(self.barrier.contact, self.obstacles)
+            if contact.adaptive_kappa:
+                density = float(np.mean([m.areal_density for m in materials]))
+                self.stiffness = AdaptiveStiffness(self.barrier, density, float(np.linalg.norm(gravity)), self.dt)
 
         self.pinned = np.zeros(self.n_cp, bool)
         for group in self.pins:
             self.pinned[group.indices] = True
         self.potential = IncrementalPotential(self.energies, ~self.pinned)
+        self.potential.drive = self.drive
 
         # State.
         self.C = self.C0.copy()
@@ -227,6 +236,12 @@ class Simulator:
             return {p.name: p.W @ self.C for p in self.pieces}
         return self._piece(name).W @ self.C
 
+    def obstacle_positions(self) -> dict[str, np.ndarray]:
+        """Current vertices (V, 3) of every obstacle, by name."""
+        if self.drive is not None:
+            return self.drive.positions()
+        return {o.name: o.at(self.t) for o in self.obstacles}
+
     def _piece(self, name: str) -> Piece:
         for p in self.pieces:
             if p.name == name:
@@ -248,10 +263,15 @@ class Simulator:
         x0 = np.where(self.pinned[:, None], targets, C_hat)
         if self.barrier is not None:
             # The predictor must not tunnel through a barrier thinner than one step of
-            # motion: move only the collision-free fraction of the way (CCD).
+            # motion: move only the collision-free fraction of the way (CCD), bodies
+            # included; Newton carries on with whatever body motion remains.
+            self.drive.set_time(t_next)
             C_start = np.where(self.pinned[:, None], targets, self.C)
-            alpha = self.potential.max_step(C_start, x0)
+            alpha = self.potential.max_step(C_start, x0, self.drive.target if self.drive.pending else None)
             x0 = C_start + alpha * (x0 - C_start)
+            self.drive.advance(alpha)
+            if self.stiffness is not None:
+                stats.extra["kappa"] = self.stiffness.update(self.potential, x0)
         C_new = minimize(self.potential, x0, self.newton, stats)
         if self.barrier is not None:
             stats.extra["contact_count"] = float(self.barrier.n_collisions)
@@ -304,7 +324,7 @@ class Simulator:
 
     def _emit(self, sinks, index, steps):
         if sinks:
-            positions = self.positions() | {o.name: o.vertices for o in self.obstacles}
+            positions = self.positions() | self.obstacle_positions()
             frame = Frame(index, self.t, positions, steps)
             for s in sinks:
                 s.write(frame)

@@ -1,4 +1,5 @@
-"""Static obstacle geometry from scene specs: triangle meshes, meshed spheres, planes."""
+"""Obstacle geometry from scene specs: triangle meshes, meshed spheres, planes, and
+animated bodies (garment/io/bodies.py)."""
 
 from __future__ import annotations
 
@@ -8,14 +9,26 @@ import numpy as np
 
 from garment.errors import InputError
 
+from .bodies import BodySequence, load_sequence
+
 
 @dataclass
 class ObstacleGeometry:
-    """A static triangle mesh: vertices (V, 3) in m, faces (F, 3) int32."""
+    """A triangle mesh: vertices (V, 3) in m (at time 0), faces (F, 3) int32, and for an
+    animated body its per-frame sequence."""
 
     name: str
     vertices: np.ndarray
     faces: np.ndarray
+    sequence: BodySequence | None = None
+
+    @property
+    def animated(self) -> bool:
+        return self.sequence is not None
+
+    def at(self, t: float) -> np.ndarray:
+        """(V, 3) vertex positions at time t."""
+        return self.sequence.at(t) if self.sequence is not None else self.vertices
 
 
 def load_obstacle(spec) -> ObstacleGeometry:
@@ -28,6 +41,9 @@ def load_obstacle(spec) -> ObstacleGeometry:
         m = trimesh.creation.icosphere(subdivisions=spec.subdivisions, radius=spec.radius)
         V = np.asarray(m.vertices) + np.asarray(spec.center, float)
         return ObstacleGeometry(spec.name, V, np.asarray(m.faces, np.int32))
+    if spec.kind == "animation":
+        seq = load_sequence(spec.animation, spec.scale, spec.up, spec.translate, spec.fps)
+        return ObstacleGeometry(spec.name, seq.frames[0].copy(), seq.faces, seq)
     try:
         m = trimesh.load(spec.mesh, force="mesh", process=False)
     except Exception as e:  # trimesh raises many types for unreadable files

@@ -1,8 +1,9 @@
-"""The collision mesh: every cloth's embedded triangle mesh plus static obstacles.
+"""The collision mesh: every cloth's embedded triangle mesh plus obstacles.
 
 Cloth vertices come first (x = W C with the constant interpolation matrix W of all
 pieces stacked), obstacle vertices after them; ipctk's static-obstacle filter keeps
-obstacles from colliding with each other.
+obstacles from colliding with each other. Obstacle positions are state: animated bodies
+move them (`obstacle_vertices`, see sim/contact/drive.py).
 """
 
 from __future__ import annotations
@@ -41,13 +42,29 @@ class ContactMesh:
             self.mesh.can_collide = ipctk.make_vertex_patches_filter(ids)
         elif self.obstacles:
             self.mesh.can_collide = ipctk.make_static_obstacle_filter(self.n_cloth)
+        self.version = 0  # bumped whenever obstacles move, so cached contact data expire
         # dx_cloth = W3 dC: 3x3-block expansion of W, for mapping gradients and Hessians.
         self.W3 = sp.kron(self.W, sp.identity(3), format="csr")
 
-    def vertices(self, C: np.ndarray) -> np.ndarray:
-        """(V, 3) Fortran-ordered collision-mesh vertices for control points C (n_cp, 3)."""
-        return np.asfortranarray(np.concatenate([self.W @ C, self.obstacle_vertices]))
+    def move_obstacles(self, B: np.ndarray) -> None:
+        """Set the obstacle vertices (Vo, 3)."""
+        self.obstacle_vertices = np.ascontiguousarray(B, dtype=float)
+        self.version += 1
+
+    @property
+    def n_obstacle(self) -> int:
+        return self.obstacle_vertices.shape[0]
+
+    def vertices(self, C: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
+        """(V, 3) Fortran-ordered collision-mesh vertices for control points C (n_cp, 3) and
+        obstacle vertices B (the current ones when None)."""
+        B = self.obstacle_vertices if B is None else B
+        return np.asfortranarray(np.concatenate([self.W @ C, B]))
 
     def cloth_part(self, v: np.ndarray) -> np.ndarray:
         """Rows of a per-DOF vector (3 V,) that belong to cloth vertices."""
         return v[: 3 * self.n_cloth]
+
+    def obstacle_part(self, v: np.ndarray) -> np.ndarray:
+        """(Vo, 3) obstacle-vertex rows of a per-DOF vector (3 V,)."""
+        return v[3 * self.n_cloth:].reshape(-1, 3)

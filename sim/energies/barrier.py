@@ -27,21 +27,29 @@ class BarrierEnergy(Energy):
         # The normalised barrier -(d/dhat - 1)^2 ln(d/dhat) of Li et al. 2023 is
         # dimensionless, so kappa is a stress (Pa) as in the paper's table (1e5 Pa); the
         # plain clamped log barrier on squared distances scales with dhat^4 instead.
-        self.potential = ipctk.BarrierPotential(ipctk.NormalizedClampedLogBarrier(), self.dhat, float(kappa))
+        # Unit stiffness inside ipctk and kappa applied here, so kappa can adapt per step.
+        self.barrier = ipctk.NormalizedClampedLogBarrier()
+        self.potential = ipctk.BarrierPotential(self.barrier, self.dhat, 1.0)
+        self.kappa = float(kappa)
         self.collisions = ipctk.NormalCollisions()
         self.collisions.use_area_weighting = True
         # A bounded iteration count: the default 1e7 took minutes on cloth lying on a plane
         # (DESIGN.md section 8); Tight Inclusion stays conservative when it stops early.
         self.ccd = ipctk.TightInclusionCCD(ccd_tolerance, ccd_max_iterations)
         self._C = None
+        self._version = -1
         self._x = None
+        self._H_cb = None  # cloth-rows x obstacle-columns block of the last Hessian
 
     def _update(self, C):
-        """Collision-mesh vertices at C, with the collision set rebuilt when C changed."""
-        if self._C is None or not np.array_equal(self._C, C):
+        """Collision-mesh vertices at C, with the collision set rebuilt when C or the
+        obstacles changed."""
+        if self._C is None or self._version != self.contact.version or not np.array_equal(self._C, C):
             self._x = self.contact.vertices(C)
             self.collisions.build(self.contact.mesh, self._x, self.dhat)
             self._C = C.copy()
+            self._version = self.contact.version
+            self._H_cb = None
         return self._x
 
     def stencils(self):
@@ -60,16 +68,20 @@ class BarrierEnergy(Energy):
     def n_collisions(self) -> int:
         return len(self.collisions)
 
+    def n_collisions_at(self, C) -> int:
+        self._update(C)
+        return len(self.collisions)
+
     def value(self, C):
         x = self._update(C)
-        return float(self.potential(self.collisions, self.contact.mesh, x))
+        return self.kappa * float(self.potential(self.collisions, self.contact.mesh, x))
 
     def add_gradient(self, C, out):
         x = self._update(C)
         if len(self.collisions) == 0:
             return
         g = self.contact.cloth_part(self.potential.gradient(self.collisions, self.contact.mesh, x))
-        out += (self.contact.W3.T @ g).reshape(-1, 3)
+        out += self.kappa * (self.contact.W3.T @ g).reshape(-1, 3)
 
     def hessian_matrix(self, C, project=True) -> sp.csr_matrix | None:
         """H_C (3 n_cp square) or None without collisions."""
@@ -77,18 +89,37 @@ class BarrierEnergy(Energy):
         if len(self.collisions) == 0:
             return None
         method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
-        H = self.potential.hessian(self.collisions, self.contact.mesh, x, method)
+        H = self.kappa * self.potential.hessian(self.collisions, self.contact.mesh, x, method).tocsr()
         n = 3 * self.contact.n_cloth
         Hc = H[:n, :n]
+        self._H_cb = H[:n, n:]
         W3 = self.contact.W3
         return (W3.T @ Hc @ W3).tocsr()
+
+    def body_gradient(self, C) -> np.ndarray:
+        """(Vo, 3) barrier gradient on the obstacle vertices."""
+        x = self._update(C)
+        if len(self.collisions) == 0:
+            return np.zeros((self.contact.n_obstacle, 3))
+        return self.kappa * self.contact.obstacle_part(self.potential.gradient(self.collisions, self.contact.mesh, x))
+
+    def coupling(self, C, dB) -> np.ndarray:
+        """(n_cp, 3) W^T H_cb dB: the first-order change of the cloth gradient when the
+        obstacles move by dB (Vo, 3), from the Hessian assembled last at this state."""
+        self._update(C)
+        if self._H_cb is None:
+            self.hessian_matrix(C)
+        if self._H_cb is None:
+            return np.zeros((self.contact.W.shape[1], 3))
+        return (self.contact.W3.T @ (self._H_cb @ dB.ravel())).reshape(-1, 3)
 
     def add_hessian(self, C, data, project=True):
         pass  # assembled through hessian_matrix: its pattern changes with the collisions
 
-    def max_step(self, C0, C1) -> float:
-        """Largest alpha in [0, 1] such that C0 -> C0 + alpha (C1 - C0) is collision free."""
-        x0, x1 = self.contact.vertices(C0), self.contact.vertices(C1)
+    def max_step(self, C0, C1, B1=None) -> float:
+        """Largest alpha in [0, 1] such that C0 -> C0 + alpha (C1 - C0) is collision free,
+        with the obstacles moving linearly from where they are to B1 (if given) meanwhile."""
+        x0, x1 = self.contact.vertices(C0), self.contact.vertices(C1, B1)
         return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, 0.0, None, self.ccd))
 
     def min_distance(self, C) -> float:

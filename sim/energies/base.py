@@ -41,6 +41,11 @@ class Energy:
         """Variable-pattern energies: the (3 n_cp)^2 scipy Hessian, or None when zero."""
         return None
 
-    def max_step(self, C0: np.ndarray, C1: np.ndarray) -> float:
-        """Largest fraction of the step C0 -> C1 this energy allows (CCD for contact)."""
+    def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:
+        """Largest fraction of the step C0 -> C1 this energy allows (CCD for contact; the
+        bodies move to B1 meanwhile when given)."""
         return 1.0
+
+    def coupling(self, C: np.ndarray, dB: np.ndarray) -> np.ndarray:
+        """Contact energies: (n_cp, 3) change of the gradient when bodies move by dB."""
+        return np.zeros_like(C)

@@ -1,0 +1,131 @@
+"""Animated bodies: one vertex array per frame on a fixed triangle topology.
+
+Two sources, as character pipelines export them: an NPZ with `verts` (T, V, 3) and
+`faces` (F, 3) (optionally `frame_dt` in s), or a directory of OBJ files, one per frame,
+in natural order (`shell2.obj` before `shell10.obj`). Positions are converted to metres
+(`scale`) and to the simulator's Z-up frame (`up = "y"` rotates +90 degrees about X).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from garment.errors import InputError
+
+# A body taller than this after scaling is almost certainly in centimetres or millimetres.
+_MAX_EXTENT_M = 5.0
+
+
+@dataclass
+class BodySequence:
+    """frames (T, V, 3) float64 in m (Z-up), faces (F, 3) int32, frame_dt in s."""
+
+    frames: np.ndarray
+    faces: np.ndarray
+    frame_dt: float
+
+    def at(self, t: float) -> np.ndarray:
+        """(V, 3) positions at time t: linear between frames, held after the last."""
+        s = max(t, 0.0) / self.frame_dt
+        k = min(int(np.floor(s)), len(self.frames) - 1)
+        if k >= len(self.frames) - 1:
+            return self.frames[-1].copy()
+        w = s - k
+        return (1.0 - w) * self.frames[k] + w * self.frames[k + 1]
+
+    @property
+    def duration(self) -> float:
+        return (len(self.frames) - 1) * self.frame_dt
+
+
+def load_sequence(path: Path, scale: float = 1.0, up: str = "z", translate=(0.0, 0.0, 0.0),
+                  fps: float | None = None) -> BodySequence:
+    """Read an NPZ or OBJ-directory body sequence and check it is usable."""
+    path = Path(path)
+    if path.is_dir():
+        frames, faces = _read_obj_dir(path)
+        file_dt = None
+    elif path.is_file():
+        frames, faces, file_dt = _read_npz(path)
+    else:
+        raise InputError(f"{path}: no such body sequence (expected an .npz file or a directory of .obj frames)")
+    if fps is not None:
+        frame_dt = 1.0 / fps
+    elif file_dt is not None:
+        frame_dt = file_dt
+    else:
+        raise InputError(f"{path}: the sequence does not store its frame time; give `fps` in the scene")
+    frames = frames.astype(float) * scale
+    if up == "y":
+        frames = frames[..., [0, 2, 1]] * np.array([1.0, -1.0, 1.0])
+    frames += np.asarray(translate, float)
+    _check(path, frames, faces)
+    return BodySequence(np.ascontiguousarray(frames), faces, float(frame_dt))
+
+
+def _read_npz(path: Path):
+    try:
+        data = np.load(path, allow_pickle=False)
+    except Exception as e:  # numpy raises several types for non-NPZ files
+        raise InputError(f"{path}: cannot read body sequence ({e})") from None
+    missing = [k for k in ("verts", "faces") if k not in data.files]
+    if missing:
+        raise InputError(f"{path}: body sequence lacks {', '.join(missing)} (needs verts (T, V, 3) and faces (F, 3))")
+    verts, faces = data["verts"], data["faces"]
+    if verts.ndim != 3 or verts.shape[2] != 3:
+        raise InputError(f"{path}: verts has shape {verts.shape}, expected (frames, vertices, 3)")
+    dt = float(data["frame_dt"]) if "frame_dt" in data.files else None
+    if dt is not None and not dt > 0:
+        raise InputError(f"{path}: frame_dt must be positive, got {dt}")
+    return verts, _faces(path, faces), dt
+
+
+def _natural_key(p: Path):
+    return [int(s) if s.isdigit() else s for s in re.split(r"(\d+)", p.name)]
+
+
+def _read_obj_dir(path: Path):
+    import trimesh
+
+    files = sorted(path.glob("*.obj"), key=_natural_key)
+    if not files:
+        raise InputError(f"{path}: directory holds no .obj frames")
+    frames, faces = [], None
+    for f in files:
+        try:
+            m = trimesh.load(f, force="mesh", process=False)
+        except Exception as e:
+            raise InputError(f"{f}: cannot read body frame ({e})") from None
+        F = np.asarray(m.faces, np.int32)
+        if faces is None:
+            faces = F
+        elif F.shape != faces.shape or not np.array_equal(F, faces):
+            raise InputError(f"{f}: frame topology differs from {files[0].name} (every frame needs the same faces)")
+        V = np.asarray(m.vertices, float)
+        if frames and V.shape != frames[0].shape:
+            raise InputError(f"{f}: {len(V)} vertices, but {files[0].name} has {len(frames[0])}")
+        frames.append(V)
+    return np.stack(frames), _faces(path, faces)
+
+
+def _faces(path: Path, faces: np.ndarray) -> np.ndarray:
+    faces = np.asarray(faces)
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise InputError(f"{path}: faces has shape {faces.shape}, expected (triangles, 3)")
+    return faces.astype(np.int32)
+
+
+def _check(path: Path, frames: np.ndarray, faces: np.ndarray) -> None:
+    if not np.all(np.isfinite(frames)):
+        t = int(np.flatnonzero(~np.isfinite(frames).all(axis=(1, 2)))[0])
+        raise InputError(f"{path}: frame {t} has non-finite vertex positions")
+    if faces.max() >= frames.shape[1] or faces.min() < 0:
+        raise InputError(f"{path}: faces index vertex {faces.max()} but frames have {frames.shape[1]} vertices")
+    extent = float(np.ptp(frames[0], axis=0).max())
+    if extent > _MAX_EXTENT_M:
+        raise InputError(f"{path}: the body is {extent:.3g} m across after scaling; the file is probably "
+                         f"not in metres (set `scale`, e.g. 0.01 for centimetres)")
