@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from garment.model import Patch
-from sim.bspline import basis_matrix
+from sim.bspline import WINDOW, eval_1d_many
 
 LAMBDA = 1e-4
 REWEIGHT = 6
@@ -83,17 +83,36 @@ def second_difference(n: int) -> np.ndarray:
     return D
 
 
+def local_basis(u: np.ndarray, n: int) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The nonzero basis functions at parameters u (P,): control indices (P, 4) and the
+    values of N, N', N'' (P, 4 each; 0 on padding). Banded: O(P), no (P, n) matrix."""
+    u = np.ascontiguousarray(u, dtype=np.float64)
+    first, N, dN, d2N = eval_1d_many(u, n)
+    idx = first[:, None] + np.arange(WINDOW)
+    ok = idx < n
+    return np.minimum(idx, n - 1), (np.where(ok, N, 0.0), np.where(ok, dN, 0.0), np.where(ok, d2N, 0.0))
+
+
+def normal_equations(u: np.ndarray, n: int, w: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A = sum_a w_a N(u_a) N(u_a)^T (n, n) and b = sum_a w_a N(u_a) P_a^T (n, 2)."""
+    idx, (N, _, _) = local_basis(u, n)
+    wN = w[:, None] * N
+    key = (idx[:, :, None] * n + idx[:, None, :]).ravel()
+    A = np.bincount(key, weights=(wN[:, :, None] * N[:, None, :]).ravel(), minlength=n * n).reshape(n, n)
+    b = np.stack([np.bincount(idx.ravel(), weights=(wN * points[:, d, None]).ravel(), minlength=n)
+                  for d in range(2)], axis=1)
+    return A, b
+
+
 def fit_side(side: SideSamples, n: int, lam: float = LAMBDA) -> np.ndarray:
     """Control points (n, 2) of the regularised least-squares fit, ends pinned."""
     if n < 3:
         raise ValueError("a quadratic side needs at least 3 control points")
     u = side.parameters(n)
-    N = basis_matrix(u, n)
     L = side.length
-    W = side.w / L
+    A, b = normal_equations(u, n, side.w / L, side.points)
     D = second_difference(n) * np.sqrt(lam / (n - 2))
-    A = N.T @ (W[:, None] * N) + D.T @ D
-    b = N.T @ (W[:, None] * side.points)
+    A = A + D.T @ D
     C = np.empty((n, 2))
     C[0], C[-1] = side.points[0], side.points[-1]
     free = slice(1, n - 1)
@@ -122,7 +141,8 @@ def fit_side_reweighted(side: SideSamples, n: int, lam: float = LAMBDA,
 
 def evaluate(ctrl: np.ndarray, u: np.ndarray, derivative: int = 0) -> np.ndarray:
     """Curve points (or derivatives) at parameters u."""
-    return basis_matrix(np.asarray(u, float), ctrl.shape[0], derivative) @ ctrl
+    idx, vals = local_basis(np.atleast_1d(np.asarray(u, float)), ctrl.shape[0])
+    return np.einsum("pk,pkd->pd", vals[derivative], ctrl[idx])
 
 
 def project(ctrl: np.ndarray, points: np.ndarray, u0: np.ndarray | None = None,
@@ -140,9 +160,11 @@ def project(ctrl: np.ndarray, points: np.ndarray, u0: np.ndarray | None = None,
     else:
         u = np.asarray(u0, float).copy()
     for _ in range(8):
-        p = evaluate(ctrl, u)
-        dp = evaluate(ctrl, u, 1)
-        ddp = evaluate(ctrl, u, 2)
+        idx, (N, dN, d2N) = local_basis(u, n)  # one basis evaluation for all three
+        C = ctrl[idx]
+        p = np.einsum("pk,pkd->pd", N, C)
+        dp = np.einsum("pk,pkd->pd", dN, C)
+        ddp = np.einsum("pk,pkd->pd", d2N, C)
         r = p - points
         g = (r * dp).sum(1)
         H = (dp * dp).sum(1) + (r * ddp).sum(1)

@@ -86,13 +86,24 @@ def det(Y: np.ndarray) -> np.ndarray:
     return Y[:, 0] * Y[:, 3] - Y[:, 1] * Y[:, 2]
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=32)
+def simulator_rules(n: int, m: int) -> dict:
+    """The simulator's rules of an n x m net (sim/quadrature.py), built once per size:
+    "gauss3", "gauss2" and (n, m >= 5) "reduced"."""
+    rules = {"gauss3": gauss(n, m, 3), "gauss2": gauss(n, m, 2)}
+    if n >= 5 and m >= 5:
+        rules["reduced"] = reduced_membrane(n, m)
+    return rules
+
+
+@lru_cache(maxsize=32)
 def rule_points(n: int, m: int, side_weight: float = 0.1) -> PointSet:
     """The points of every simulator rule (sim/quadrature.py) with energy weights: 3 x 3
     Gauss at full weight, 2 x 2 Gauss and the reduced rule (n, m >= 5) at side_weight."""
-    rules = [(gauss(n, m, 3), 1.0), (gauss(n, m, 2), side_weight)]
-    if n >= 5 and m >= 5:
-        rules.append((reduced_membrane(n, m), side_weight))
+    R = simulator_rules(n, m)
+    rules = [(R["gauss3"], 1.0), (R["gauss2"], side_weight)]
+    if "reduced" in R:
+        rules.append((R["reduced"], side_weight))
     u = np.concatenate([r.u for r, _ in rules])
     v = np.concatenate([r.v for r, _ in rules])
     w = np.concatenate([r.w * k for r, k in rules])
@@ -189,9 +200,33 @@ def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True, project=T
 
 
 @njit(cache=True, inline="always")
+def _positive_definite_4(A, L) -> bool:
+    """Whether the symmetric 4 x 4 A is positive definite (Cholesky into scratch L)."""
+    for j in range(4):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if d <= 0.0:
+            return False
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, 4):
+            x = A[i, j]
+            for k in range(j):
+                x -= L[i, k] * L[j, k]
+            L[i, j] = x / L[j, j]
+    return True
+
+
+@njit(cache=True, inline="always")
 def _project_psd_4(A, out):
-    """out = A with negative eigenvalues clamped to 0 (cyclic Jacobi; A is overwritten)."""
+    """out = A with negative eigenvalues clamped to 0 (cyclic Jacobi; A is overwritten).
+    A positive definite A (Cholesky succeeds: most points near the optimum) is copied."""
     V = np.eye(4)
+    if _positive_definite_4(A, out):
+        for i in range(4):
+            for j in range(4):
+                out[i, j] = A[i, j]
+        return
     for _ in range(10):
         off, diag = 0.0, 0.0
         for i in range(4):
@@ -238,6 +273,7 @@ def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
     Hp = np.zeros((4, 4))
     y = np.zeros(4)
     gd = np.zeros(4)
+    G = np.zeros((K, 2, 4))
     for q in range(Q):
         for i in range(4):
             y[i] = Y[q, i] * scale[i]
@@ -275,10 +311,15 @@ def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
         for i in range(4):
             for j in range(4):
                 Hp[i, j] *= w[q] * scale[i] * scale[j]
-        # y index 2 alpha + d; local block (a, b): sum_alpha,beta D[alpha, a] Hp[2a+d, 2b+e] D[beta, b]
+        # y index 2 alpha + d; local block (a, b): sum_alpha,beta D[alpha, a] Hp[2a+d, 2b+e] D[beta, b].
+        # G[a] = D[:, a]^T Hp rows first (2 x 4 per a), then the blocks: half the flops.
         for a in range(K):
             du_a, dv_a = D[q, 0, a], D[q, 1, a]
-            if du_a == 0.0 and dv_a == 0.0:
+            for dd in range(2):
+                for c in range(4):
+                    G[a, dd, c] = du_a * Hp[dd, c] + dv_a * Hp[2 + dd, c]
+        for a in range(K):
+            if D[q, 0, a] == 0.0 and D[q, 1, a] == 0.0:
                 continue
             for b in range(K):
                 du_b, dv_b = D[q, 0, b], D[q, 1, b]
@@ -287,8 +328,7 @@ def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
                 s = slot[q, a, b]
                 for dd in range(2):
                     for ee in range(2):
-                        blocks[s, dd, ee] += (du_a * (Hp[dd, ee] * du_b + Hp[dd, 2 + ee] * dv_b)
-                                              + dv_a * (Hp[2 + dd, ee] * du_b + Hp[2 + dd, 2 + ee] * dv_b))
+                        blocks[s, dd, ee] += G[a, dd, ee] * du_b + G[a, dd, 2 + ee] * dv_b
     return E, gY, blocks
 
 
@@ -298,12 +338,29 @@ class _Assembler:
 
     def __init__(self, pts: PointSet):
         Q, K = pts.idx.shape
-        nm = pts.n * pts.m
-        key = (pts.idx[:, :, None].astype(np.int64) * nm + pts.idx[:, None, :]).ravel()
-        uniq, slot = np.unique(key, return_inverse=True)
-        self.slot = slot.reshape(Q, K, K)
+        n, m = pts.n, pts.m
+        nm = n * m
+        # Blocks (a, b) with both basis functions active at some point. Their stencils are
+        # at most 4 wide, so b = a + (di, dj) with |di|, |dj| <= 3: code the pair as
+        # a * 49 + offset and mark the codes in place of sorting them (np.unique was
+        # 0.6 s of a 102 x 36 net).
+        active = (pts.du != 0) | (pts.dv != 0)  # (Q, K)
+        ia, ja = np.divmod(pts.idx.astype(np.int64), m)
+        di = ia[:, None, :] - ia[:, :, None] + 3  # (Q, K, K): row a, column b
+        dj = ja[:, None, :] - ja[:, :, None] + 3
+        pair = active[:, :, None] & active[:, None, :]
+        code = pts.idx[:, :, None].astype(np.int64) * 49 + di * 7 + dj
+        code = np.where(pair, code, 0)
+        marker = np.zeros(nm * 49, bool)
+        marker[code[pair]] = True
+        lookup = np.cumsum(marker) - 1
+        self.slot = np.where(pair, lookup[code], 0)
+        uniq = np.flatnonzero(marker)
         self.n_blocks = uniq.size
-        br, bc = np.divmod(uniq, nm)
+        a, off = np.divmod(uniq, 49)
+        bi, bj = np.divmod(a, m)
+        bi, bj = bi + off // 7 - 3, bj + off % 7 - 3
+        br, bc = a, bi * m + bj
         # Block (br, bc) entry (d, e) sits at row 2 br + d, column 2 bc + e.
         rows = (2 * br[:, None, None] + np.arange(2)[None, :, None]).repeat(2, axis=2).ravel()
         cols = (2 * bc[:, None, None] + np.arange(2)[None, None, :]).repeat(2, axis=1).ravel()

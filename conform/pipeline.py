@@ -12,6 +12,10 @@ valid interior at that resolution, e.g. tabs between deep darts), the longer pai
 grows by a quarter and it starts again, up to UNTANGLE_RETRIES times (neither with given
 counts). The boundary rows are the side fits, offset to keep the panel's area, and stay
 fixed during MIPS unless MipsOptions.w_boundary is finite.
+
+A garment (conform_all): panels with deep darts are first cut into pieces along the darts'
+continuations (split.py, ConformOptions.split), each piece conformed as above and the
+seams moved onto the pieces; then every seam is mapped to patch parameters (seams.py).
 """
 
 from __future__ import annotations
@@ -24,12 +28,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from garment.model import SIDES, Panel, PanelSeam, Patch, PatchSet
-from sim.bspline import basis_matrix
 
 from . import corners as corners_mod
 from .boundary import Outline, PanelError, extract_outline
 from .control_net import assemble_boundary, laplace_start, match_area, refine, side_rows, tangential_start
-from .curve_fit import LAMBDA, SideSamples, evaluate, fit_side_reweighted, sample_polyline, second_difference
+from .curve_fit import (LAMBDA, SideSamples, evaluate, fit_side_reweighted, normal_equations, sample_polyline,
+                        second_difference)
 from .lift import lift
 from .mips import BoundaryFit, MipsOptions
 from .mips import refine as mips_refine
@@ -42,7 +46,9 @@ class ConformOptions:
     control_points: (n, m) counts along u and v; corners: 4 source vertex ids or 4 (x, y)
     rest positions (None: automatic); tolerance: boundary fit tolerance, metres (None:
     max(1 mm, 0.5 % of the diameter)); refine: knot-insertion levels after the first MIPS
-    (each halves the knot spans); lam: side-fit smoothing; mips: solver settings."""
+    (each halves the knot spans); lam: side-fit smoothing; mips: solver settings; split:
+    "auto" (cut a panel at its darts when one patch would be badly out of balance),
+    "darts" (always cut at darts) or "never" (conform/split.py)."""
 
     knot_span: float = 0.02
     control_points: tuple[int, int] | None = None
@@ -52,6 +58,7 @@ class ConformOptions:
     adapt_rounds: int = 4
     lam: float = LAMBDA
     mips: MipsOptions = field(default_factory=MipsOptions)
+    split: str = "auto"
 
 
 @dataclass
@@ -182,37 +189,42 @@ def boundary_term(samples: list[SideSamples], n: int, m: int, lam: float, h: flo
     c = 0.0
     for side, row in zip(samples, rows):
         k = row.shape[0]
-        N = basis_matrix(side.parameters(k), k)
         W = side.w / side.length
+        A, bk = normal_equations(side.parameters(k), k, W, side.points)
         D = second_difference(k) * np.sqrt(lam / (k - 2))
-        A = N.T @ (W[:, None] * N) + D.T @ D
+        A = A + D.T @ D
         r, cc = np.meshgrid(row, row, indexing="ij")
         H = H + sp.csr_matrix((A.ravel(), (r.ravel(), cc.ravel())), shape=(n * m, n * m))
-        b[row] += N.T @ (W[:, None] * side.points)
+        b[row] += bk
         c += float((W * (side.points**2).sum(1)).sum())
     return BoundaryFit(H.tocsr(), b, c, h)
 
 
-def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(), avoid=()) -> tuple[Patch, dict]:
+def choose_corners(panel: Panel, outline: Outline, options: ConformOptions, hints=(), avoid=()) -> np.ndarray:
+    """Four loop positions: the user's (options.corners) or the automatic choice with the
+    panel's own hints, the seam ends (hints, rest positions) and never a point of avoid."""
+    if options.corners is not None:
+        return corners_mod.corners_from_user(panel, outline, options.corners)
+    pos_of = {int(v): k for k, v in enumerate(outline.vertices)}
+    near = float(np.diff(outline.s).max())  # seam points lie on the outline
+    own = [pos_of[int(h)] for h in panel.corner_hints if int(h) in pos_of]
+    seam_ends = list(corners_mod.loop_positions(outline, hints, near))
+    avoid_pos = corners_mod.loop_positions(outline, avoid, near)
+    return corners_mod.pick_corners(outline, own + seam_ends, hints_only=panel.faces is None and len(own) >= 4,
+                                    avoid=avoid_pos)
+
+
+def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(), avoid=(),
+                  lift_from: Panel | None = None) -> tuple[Patch, dict]:
     """Conform one panel. hints: rest positions (P, 2) preferred as corners (seam ends);
-    avoid: rest positions never made corners (points on darts). Returns the patch and its
-    report (quality numbers and provenance)."""
+    avoid: rest positions never made corners (points on darts); lift_from: the panel whose
+    3D placement the patch takes (default: this one; a piece of a split panel: its parent).
+    Returns the patch and its report (quality numbers and provenance)."""
     options = options or ConformOptions()
     start = time.perf_counter()
     outline = extract_outline(panel)
     tol = tolerance_for(outline, options)
-
-    # Corners.
-    if options.corners is not None:
-        c = corners_mod.corners_from_user(panel, outline, options.corners)
-    else:
-        pos_of = {int(v): k for k, v in enumerate(outline.vertices)}
-        near = float(np.diff(outline.s).max())  # seam points lie on the outline
-        own = [pos_of[int(h)] for h in panel.corner_hints if int(h) in pos_of]
-        seam_ends = list(corners_mod.loop_positions(outline, hints, near))
-        avoid_pos = corners_mod.loop_positions(outline, avoid, near)
-        c = corners_mod.pick_corners(outline, own + seam_ends, hints_only=panel.faces is None and len(own) >= 4,
-                                     avoid=avoid_pos)
+    c = choose_corners(panel, outline, options, hints, avoid)
     sides = split_sides(outline, c)
     if np.any(sides.lengths <= 0) or any(len(p) < 2 for p in sides.polylines):
         raise PanelError(panel, "two corners coincide")
@@ -272,7 +284,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             raise PanelError(panel, f"could not untangle the control net ({n} x {m}); try other corners "
                                     "or a finer knot span")
 
-    world = lift(panel, X)
+    world = lift(lift_from if lift_from is not None else panel, X)
     patch = Patch(panel.name, X, world)
     rep = report(outline, X, tol)
     rep.update({
@@ -309,46 +321,135 @@ def provenance(panel: Panel, outline: Outline, sides: Sides) -> dict:
             # The input boundary edges are the consecutive pairs of these vertex ids.
             entry["boundary_vertex_ids"] = [int(ids[outline.vertices[p]]) for p in pos]
         else:
-            # Outline panels: the first and last outline point of the side (panel indices).
-            entry["outline_range"] = [int(outline.vertices[pos[0]]), int(outline.vertices[pos[-1]])]
+            # Outline panels: the first and last outline point of the side (panel indices;
+            # a piece of a split panel: the parent's, -1 for a point the split added).
+            entry["outline_range"] = [int(ids[outline.vertices[pos[0]]]), int(ids[outline.vertices[pos[-1]]])]
         if panel.segment_edges is not None:
             seg = panel.segment_edges[outline.vertices[pos[:-1]]]
-            edges = [int(e) for k, e in enumerate(seg) if k == 0 or e != seg[k - 1]]
+            edges = [int(e) for k, e in enumerate(seg) if e >= 0 and (k == 0 or e != seg[k - 1])]
             entry["pattern_edges"] = edges
+            if np.any(seg < 0):
+                entry["cut"] = True  # runs along a cut of a split panel (an internal seam)
         out["sides"][name] = entry
     return out
+
+
+def plan_split(panel: Panel, outline: Outline, seams: list[PanelSeam], options: ConformOptions, hints=(),
+               avoid=()):
+    """The split of a darted panel into pieces (conform/split.py), or None to keep it one
+    patch: options.split "never", no dart that can be cut, user corners for the panel, or
+    ("auto") sides of one patch balanced within SPLIT_IMBALANCE."""
+    from .split import SPLIT_IMBALANCE, darts_of, imbalance, split_panel
+
+    if options.split == "never" or options.corners is not None:
+        return None
+    darts = darts_of(panel.name, seams)
+    if not darts:
+        return None
+    if options.split == "auto":
+        sides = split_sides(outline, choose_corners(panel, outline, options, hints, avoid))
+        if imbalance(sides.lengths) <= SPLIT_IMBALANCE:
+            return None
+    return split_panel(panel, outline, darts)
 
 
 def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOptions | None = None,
                 corners: dict | None = None, on_panel=None) -> PatchSet:
     """Conform every panel (a failing panel is recorded, the others go on) and map the
-    seams between converted panels to their patches. corners: panel name -> 4 corners
-    (overrides); on_panel(panel, report or None, error or None) after each panel."""
+    seams between converted panels to their patches. A panel with deep darts is split into
+    pieces `name.0`, `name.1`, ... (plan_split), each its own patch, sewn together along
+    the cuts. corners: panel (or piece) name -> 4 corners (overrides); on_panel(panel,
+    report or None, error or None) after each panel or piece."""
     from .seams import map_seam, seam_hints
+    from .split import split_seams
 
     options = options or ConformOptions()
     corners = corners or {}
-    unknown = set(corners) - {p.name for p in panels}
+    names = {p.name for p in panels}
+    unknown = {c for c in corners if c not in names and c.rpartition(".")[0] not in names}
     if unknown:
         from garment.errors import InputError
 
         raise InputError(f"corners: no panel named {', '.join(sorted(unknown))}")
-    patches, quality, prov, failures, tol = {}, {}, {}, {}, {}
+    patches, quality, prov, failures, tol, splits = {}, {}, {}, {}, {}, {}
+
+    # 1. Plan: outlines, splits, and the seams moved onto the pieces. Corner hints of
+    # panels that stay whole come from the seams as given.
+    work = []  # (panel to conform, hints, avoid, lift_from, split)
+    all_seams = list(seams)
     for panel in panels:
         hints, avoid = seam_hints(panel.name, seams)
         opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
         try:
-            patch, rep = conform_panel(panel, opts, hints, avoid)
+            outline = extract_outline(panel)
+            split = plan_split(panel, outline, seams, opts, hints, avoid)
+        except PanelError as e:
+            failures[panel.name] = str(e)
+            if on_panel:
+                on_panel(panel, None, e)
+            continue
+        if split is None:
+            work.append((panel, hints, avoid, None, None))
+            continue
+        all_seams = split_seams(all_seams, split, tolerance_for(outline, options))
+        splits[panel.name] = split
+        for piece in split.pieces:
+            work.append((piece.panel, None, piece.avoid, panel, split))
+
+    # 2. Conform every panel and piece.
+    for panel, hints, avoid, parent, split in work:
+        if split is not None:
+            hints, dart_points = seam_hints(panel.name, all_seams)
+            avoid = np.concatenate([np.asarray(avoid).reshape(-1, 2), dart_points])
+        opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
+        try:
+            patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent)
         except PanelError as e:
             failures[panel.name] = str(e)
             if on_panel:
                 on_panel(panel, None, e)
             continue
         prov[panel.name] = rep.pop("provenance")
+        if split is not None:
+            prov[panel.name].update(piece_provenance(split, panel.name))
         patches[panel.name], quality[panel.name] = patch, rep
         tol[panel.name] = 2e-3 * rep["tolerance_mm"]  # twice the fit tolerance, metres
         if on_panel:
             on_panel(panel, rep, None)
-    mapped = [map_seam(s, patches, tol) for s in seams if s.panel_a in patches and s.panel_b in patches]
+    mapped = [map_seam(s, patches, tol) for s in all_seams if s.panel_a in patches and s.panel_b in patches]
     source = panels[0].source if panels else ""
-    return PatchSet(list(patches.values()), mapped, prov, quality, failures, source)
+    summary = {name: split_summary(sp_, quality) for name, sp_ in splits.items()}
+    return PatchSet(list(patches.values()), mapped, prov, quality, failures, source, summary)
+
+
+def piece_provenance(split, name: str) -> dict:
+    """What a piece of a split panel is: the parent panel, its index, the cuts."""
+    piece = next(p for p in split.pieces if p.panel.name == name)
+    return {
+        "panel": split.parent.name,
+        "patch": name,
+        "piece": piece.index,
+        "pieces": len(split.pieces),
+        "cuts": [{"from": [float(x) for x in c.p0], "to": [float(x) for x in c.p1], "dart": c.dart}
+                 for k, c in enumerate(split.cuts) if k in piece.cuts],
+    }
+
+
+def split_summary(split, quality: dict) -> dict:
+    """Per split panel: its patches, cuts, total seconds and the area of the patches
+    together against the panel's (exact and reduced-rule), %."""
+    names = split.piece_names()
+    done = [quality[n] for n in names if n in quality]
+    area = split.parent.area if split.parent.area is not None else extract_outline(split.parent).area
+    out = {
+        "patches": names,
+        "cuts": [{"from": [float(x) for x in c.p0], "to": [float(x) for x in c.p1], "dart": c.dart,
+                  "length_mm": 1e3 * c.length} for c in split.cuts],
+        "seconds": float(sum(q["seconds"] for q in done)),
+        "converted": len(done) == len(names),
+    }
+    for key in ("gauss2", "reduced"):
+        vals = [q.get(f"area_{key}_m2") for q in done]
+        if len(done) == len(names) and all(v is not None for v in vals):
+            out[f"area_error_{key}_pct"] = 100.0 * (sum(vals) - area) / area
+    return out

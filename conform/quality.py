@@ -18,13 +18,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim.quadrature import gauss, reduced_membrane
 from sim.rest import point_data
 
 from .boundary import Outline
 from .curve_fit import evaluate
 from .control_net import side_rows
-from .mips import det, rule_points
+from .mips import det, rule_points, simulator_rules
 
 
 def polyline_distance(points: np.ndarray, poly: np.ndarray, closed: bool, k: int = 6) -> np.ndarray:
@@ -122,8 +121,8 @@ def report(outline: Outline, X: np.ndarray, tolerance: float) -> dict:
         "input_area_m2": outline.area,
     }
     if rep["inverted_points"] == 0:
-        for name, rule in (("reduced", reduced_membrane(n, m) if min(n, m) >= 5 else None),
-                           ("gauss2", gauss(n, m, 2))):
+        rules = simulator_rules(n, m)
+        for name, rule in (("reduced", rules.get("reduced")), ("gauss2", rules["gauss2"])):
             if rule is None:
                 continue
             area = float(point_data(X, rule).w.sum())

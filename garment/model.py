@@ -6,7 +6,7 @@ A patch is a tensor-product quadratic B-spline surface with open uniform integer
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -101,6 +101,9 @@ class Panel:
     segment_edges: outline panels only, (V,) id of the source edge that the outline
                segment from vertex k to k+1 belongs to (GarmentCode edge index).
     area:      reference rest area, m^2 (None: the triangles' area).
+    segment_bulge: outline panels only, (V,) area (m^2) between the exact source curve and
+               the straight outline segment from vertex k to k+1 (positive outwards), so
+               that area = polygon area + sum; None: straight segments.
     """
 
     name: str
@@ -113,6 +116,7 @@ class Panel:
     corner_hints: np.ndarray | None = None
     segment_edges: np.ndarray | None = None
     area: float | None = None
+    segment_bulge: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.rest = np.ascontiguousarray(self.rest, dtype=np.float64).reshape(-1, 2)
@@ -181,7 +185,8 @@ class PatchSeam:
 @dataclass
 class PatchSet:
     """Conformed patches with their seams, provenance and quality reports (by patch name),
-    and the panels that failed (name -> message)."""
+    the panels that failed (name -> message), and the panels split into several patches
+    (name -> {"patches": [names], "cuts": [...], totals})."""
 
     patches: list[Patch]
     seams: list[PatchSeam]
@@ -189,6 +194,7 @@ class PatchSet:
     quality: dict
     failures: dict
     source: str = ""
+    splits: dict = field(default_factory=dict)
 
     def patch(self, name: str) -> Patch:
         for p in self.patches:

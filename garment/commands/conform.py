@@ -3,7 +3,10 @@
 INPUT is a panel mesh (OBJ with `vt` layout, `g` panels and `seam`/`stitch` lines, or any
 flat mesh trimesh/meshio read) or a GarmentCode pattern (.json). Every panel is conformed;
 the patches, seams and reports go to OUTDIR/patches.json (format: garment/io/patchfile.py).
-A panel that cannot be converted is reported and skipped; the exit status is then 1.
+A panel with deep darts is cut along its darts' continuations into several patches
+(`--split`, conform/split.py): one table row per patch (`skirt_back.0`, ...) and a summary
+row for the panel. A panel that cannot be converted is reported and skipped; the exit
+status is then 1.
 """
 
 from __future__ import annotations
@@ -77,6 +80,27 @@ def row(name: str, rep: dict | None, error: str | None) -> dict:
     return r
 
 
+def split_row(name: str, summary: dict) -> dict:
+    """The summary row of a panel split into several patches."""
+    return {
+        "panel": name,
+        "status": "split",
+        "control_net": f"{len(summary['patches'])} patches",
+        "area_error_pct": summary.get("area_error_gauss2_pct"),
+        "reduced_area_error_pct": summary.get("area_error_reduced_pct"),
+        "seconds": summary["seconds"],
+    }
+
+
+def with_split_rows(rows: list[dict], splits: dict) -> list[dict]:
+    """rows with each split panel's summary row after its last patch's row."""
+    out = list(rows)
+    for name, summary in splits.items():
+        at = max((k for k, r in enumerate(out) if r["panel"] in summary["patches"]), default=len(out) - 1)
+        out.insert(at + 1, split_row(name, summary))
+    return out
+
+
 def run(args) -> int:
     from conform.mips import MipsOptions
     from conform.pipeline import ConformOptions, conform_all
@@ -95,7 +119,7 @@ def run(args) -> int:
         raise InputError("--knot-span must be positive")
     options = ConformOptions(knot_span=span, control_points=counts, refine=args.refine,
                              tolerance=None if args.tolerance is None else 1e-3 * args.tolerance,
-                             mips=MipsOptions())
+                             mips=MipsOptions(), split=args.split)
     out_dir = Path(args.output)
     try:  # fail before the work, not after it
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -117,7 +141,8 @@ def run(args) -> int:
 
         def on_panel(panel, rep, error):
             rows.append(row(panel.name, rep, None if error is None else str(error)))
-            bar.update(task, advance=1, status=f"{panel.name}: " + (
+            # A split panel reports each of its pieces: the total grows with them.
+            bar.update(task, advance=1, total=max(len(panels), len(rows)), status=f"{panel.name}: " + (
                 "failed" if rep is None else f"{rep['control_points'][0]}x{rep['control_points'][1]}, "
                                              f"{rep['seconds']:.2f} s"))
 
@@ -129,13 +154,14 @@ def run(args) -> int:
     if args.preview is not None:
         render_preview(ps, panels, args.preview)
     failed = [r for r in rows if r["status"] != "ok"]
+    rows = with_split_rows(rows, ps.splits)
     if args.json:
         keys = ("panel", "status", "control_points", "boundary_error_mm", "min_jacobian_ratio",
                 "max_jacobian_ratio", "min_corner_angle_deg", "area_error_pct", "reduced_area_error_pct",
                 "seconds", "error")
         print(json.dumps({"input": str(args.input), "output": str(out),
-                          "panels": [{k: r[k] for k in keys if k in r} for r in rows],
-                          "seams": len(ps.seams)}, indent=1))
+                          "panels": [{k: r[k] for k in keys if k in r} for r in rows if r["status"] != "split"],
+                          "splits": ps.splits, "seams": len(ps.seams)}, indent=1, default=float))
     else:
         print_table(f"garment conform {args.input}", COLUMNS, rows)
     for r in failed:
@@ -167,22 +193,25 @@ def render_preview(ps, panels, path) -> None:
             outline = extract_outline(panel).points
         except InputError:
             outline = panel.rest if panel.faces is None else None
-        items.append((panel.name, outline, by_name.get(panel.name)))
+        # A split panel shows all its pieces' patches over its outline.
+        names = ps.splits[panel.name]["patches"] if panel.name in ps.splits else [panel.name]
+        items.append((panel.name, outline, [by_name[n] for n in names if n in by_name]))
     boxes = []
-    for name, outline, patch in items:
-        pts = [a for a in (outline, None if patch is None else patch.rest.reshape(-1, 2)) if a is not None]
+    for name, outline, patches in items:
+        pts = [outline] if outline is not None else []
+        pts += [p.rest.reshape(-1, 2) for p in patches]
         P = np.concatenate(pts) if pts else np.zeros((1, 2))
         boxes.append((P.min(0), P.max(0)))
     offsets = _layout(boxes)
 
     pl = pv.Plotter(off_screen=True, window_size=(1600, 1100))
     pl.set_background("white")
-    for (name, outline, patch), off, (lo, hi) in zip(items, offsets, boxes):
+    for (name, outline, patches), off, (lo, hi) in zip(items, offsets, boxes):
         def lift(P):
             P = np.asarray(P, float).reshape(-1, 2) + off
             return np.column_stack([P, np.zeros(len(P))])
 
-        if patch is not None:
+        for patch in patches:
             X = patch.rest
             n, m = X.shape[:2]
             k = 6
@@ -208,10 +237,15 @@ def render_preview(ps, panels, path) -> None:
                     pl.add_mesh(pv.lines_from_points(lift(polyline)), color="#d62728", line_width=0.5,
                                 opacity=0.6)
             pl.add_points(lift(X), color="#d62728", point_size=3, render_points_as_spheres=True)
+        for cut in ps.splits.get(name, {}).get("cuts", []):  # internal seams of a split panel
+            pl.add_mesh(pv.lines_from_points(lift(np.array([cut["from"], cut["to"]]))), color="#1f77b4",
+                        line_width=2.0)
         if outline is not None:
             closed = np.vstack([outline, outline[:1]])
             pl.add_mesh(pv.lines_from_points(lift(closed)), color="#1f77b4", line_width=2.5)
-        label = name if patch is not None else f"{name} (failed)"
+        label = name if patches else f"{name} (failed)"
+        if len(patches) > 1:
+            label += f" ({len(patches)} patches)"
         pl.add_point_labels(lift(np.array([[0.5 * (lo[0] + hi[0]), hi[1]]])), [label], font_size=12,
                             text_color="black", shape=None, show_points=False, always_visible=True)
     pl.view_xy()
@@ -252,6 +286,9 @@ def register(sub) -> None:
     c.add_argument("--panels", help="comma-separated panel names to convert (default: all)")
     c.add_argument("--tolerance", type=float, metavar="MM",
                    help="boundary fit tolerance in mm (default: max(1 mm, 0.5%% of the panel diameter))")
+    c.add_argument("--split", choices=("auto", "darts", "never"), default="auto",
+                   help="cut darted panels into several patches along the darts' continuations: when one "
+                        "patch would be badly out of balance (auto, default), always (darts) or never")
     c.add_argument("--refine", type=int, default=0, metavar="K", help="knot-insertion levels after the fit")
     c.add_argument("--preview", type=Path, metavar="PNG", help="render control nets over the outlines")
     c.add_argument("--json", action="store_true", help="print one JSON object instead of the table")

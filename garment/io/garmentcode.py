@@ -10,7 +10,8 @@ edge lengths - or `circle` [radius, large_arc, right] as in SVG), `translation` 
 
 Each panel becomes an outline Panel: the edges sampled every `spacing` metres (pattern
 vertices kept exactly, as corner hints), its rigid 3D placement, and its exact area
-(Green's theorem on the curves).
+(Green's theorem on the curves), with the area each outline segment misses against its
+curve (`segment_bulge`, so pieces of a split panel know their exact areas too).
 """
 
 from __future__ import annotations
@@ -98,6 +99,17 @@ class _Curve:
     def at_length_fraction(self, f) -> np.ndarray:
         return self.at(np.interp(np.asarray(f, float) * self.length, self._s, self._t))
 
+    def bulges(self, f, per_segment: int = 32) -> np.ndarray:
+        """Signed areas (m^2) between the curve and its chords from length fraction f[k]
+        to f[k + 1], (K - 1,): positive where the curve lies to the right of the chord
+        (outwards on a counter-clockwise loop), i.e. what the chord polygon misses."""
+        t = np.interp(np.asarray(f, float) * self.length, self._s, self._t)
+        sub = t[:-1, None] + (t[1:] - t[:-1])[:, None] * np.linspace(0.0, 1.0, per_segment + 1)[None, :]
+        p = self.at(sub.ravel()).reshape(sub.shape[0], per_segment + 1, 2)
+        fan = 0.5 * (p[:, :-1, 0] * p[:, 1:, 1] - p[:, 1:, 0] * p[:, :-1, 1]).sum(1)
+        chord = 0.5 * (p[:, 0, 0] * p[:, -1, 1] - p[:, -1, 0] * p[:, 0, 1])
+        return fan - chord
+
     def green(self) -> float:
         """Integral of (x dy - y dx) / 2 along the curve (exact for polynomial curves)."""
         t = 0.5 * (_GL_T + 1.0)
@@ -168,18 +180,20 @@ def _panel(name, spec, scale, spacing, where, source) -> tuple[Panel, list[_Curv
         if e["endpoints"][1] != nxt["endpoints"][0]:
             raise InputError(f"{where}: edges {k} and {(k + 1) % len(edges)} do not join: the outline is not a loop")
     curves = [_edge_curve(V[e["endpoints"][0]], V[e["endpoints"][1]], e.get("curvature"), where) for e in edges]
-    pts, seg_edge, hints = [], [], []
+    pts, seg_edge, hints, bulge = [], [], [], []
     for k, c in enumerate(curves):
         count = max(int(np.ceil(c.length / spacing)), 1 if c.kind == "line" else 4)
         hints.append(sum(len(p) for p in pts))
         pts.append(c.at_length_fraction(np.arange(count) / count))
         seg_edge += [k] * count
+        bulge.append(np.zeros(count) if c.kind == "line" else c.bulges(np.arange(count + 1) / count))
     rest = np.concatenate(pts)
     seg_edge = np.asarray(seg_edge)
+    bulge = np.concatenate(bulge)
     hints = np.asarray(hints)
     area = sum(c.green() for c in curves)
     if area < 0:  # GarmentCode normalises loops to counter-clockwise; accept the other way
-        rest, seg_edge = rest[::-1], seg_edge[::-1]
+        rest, seg_edge, bulge = rest[::-1], seg_edge[::-1], -bulge[::-1]
         rest = np.roll(rest, 1, axis=0)
         hints = (rest.shape[0] - hints) % rest.shape[0]
         area = -area
@@ -187,5 +201,5 @@ def _panel(name, spec, scale, spacing, where, source) -> tuple[Panel, list[_Curv
     T[:3, :3] = euler_xyz(spec.get("rotation", [0, 0, 0]))
     T[:3, 3] = np.asarray(spec.get("translation", [0, 0, 0]), float) * scale
     panel = Panel(name=name, source=source, rest=rest, transform=T, corner_hints=np.sort(hints),
-                  segment_edges=seg_edge, area=float(area))
+                  segment_edges=seg_edge, area=float(area), segment_bulge=bulge)
     return panel, curves

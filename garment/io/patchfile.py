@@ -30,8 +30,17 @@
                "intervals": [{"side": "v0", "t0": 0.0, "t1": 12.0}, ...]},
          "b": {...}}    # a.uv[k] is sewn to b.uv[k]
       ],
-      "failures": {"panel name": "why it was not converted"}
+      "failures": {"panel or patch name": "why it was not converted"},
+      "splits": {"panel name": {      # panels cut into several patches (conform/split.py)
+         "patches": ["skirt_back.0", ...], "cuts": [{"from", "to", "dart", "length_mm"}],
+         "seconds", "area_error_gauss2_pct", "area_error_reduced_pct": the patches together
+         against the panel}}
     }
+
+A patch cut from a split panel is named `panel.k`; its provenance adds "patch", "piece",
+"pieces" and its "cuts" (rest positions from the dart tip to the outline), its sides'
+"outline_range" are the parent's outline points (-1: a point the split added, a cut's end
+or a point along it) and a side along a cut has "cut": true. The cuts and the darts are ordinary seams between the pieces.
 
 Parameters: X(u, v) = sum N_i(u) N_j(v) X_ij over the domain [0, n-2] x [0, m-2]; side v0 is
 v = 0, u1 is u = n-2, v1 is v = m-2, u0 is u = 0; an interval's t is u on v0/v1 and v on
@@ -98,7 +107,7 @@ def to_dict(ps: PatchSet) -> dict:
                   "intervals": [vars(iv) for iv in s.intervals_b]},
         })
     return _clean({"format": FORMAT, "version": VERSION, "units": "m", "source": ps.source,
-                   "patches": patches, "seams": seams, "failures": ps.failures})
+                   "patches": patches, "seams": seams, "failures": ps.failures, "splits": ps.splits})
 
 
 def save_patchset(path, ps: PatchSet) -> Path:
@@ -158,4 +167,5 @@ def load_patchset(path) -> PatchSet:
                                    ends[0][2], ends[1][2]))
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"{path}: seams[{k}]: {e}") from None
-    return PatchSet(patches, seams, prov, quality, dict(doc.get("failures", {})), str(doc.get("source", "")))
+    return PatchSet(patches, seams, prov, quality, dict(doc.get("failures", {})), str(doc.get("source", "")),
+                    dict(doc.get("splits", {})))
