@@ -131,6 +131,7 @@ class ClothSpec:
     axis_v: tuple[float, float, float] = (0.0, 1.0, 0.0)
     material: Material = PRESETS["cotton"]
     perturbation: Perturbation | None = None
+    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # initial, m/s
 
     @property
     def normal(self) -> np.ndarray:
@@ -198,6 +199,25 @@ class OutputSpec:
     mesh_resolution: tuple[int, int] | None = None
 
 
+@dataclass(frozen=True)
+class Spin:
+    """Rigid rotation of an obstacle about `axis` through `center` at `speed` rad/s,
+    starting at time `start` s (ramping up linearly over `ramp` s)."""
+
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    speed: float = 0.0
+    start: float = 0.0
+    ramp: float = 0.0
+
+    def angle(self, t: float) -> float:
+        """Angle turned by time t: 0 before `start`, then speed ramping up over `ramp`."""
+        s = max(t - self.start, 0.0)
+        if self.ramp > 0.0 and s < self.ramp:
+            return 0.5 * self.speed * s * s / self.ramp
+        return self.speed * (s - 0.5 * self.ramp)
+
+
 @dataclass
 class ObstacleSpec:
     """A collision obstacle: a triangle mesh file, a meshed sphere, a plane, or an animated
@@ -215,6 +235,7 @@ class ObstacleSpec:
     mesh: Path | None = None
     animation: Path | None = None
     fps: float | None = None
+    spin: Spin | None = None
     scale: float = 1.0
     up: str = "z"
     translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -318,14 +339,15 @@ _MATERIAL_NUMBERS = {  # key -> bounds
 }
 _MATERIAL_KEYS = ("preset", *_MATERIAL_NUMBERS, "membrane", "quadrature")
 _CLOTH_KEYS = (
-    "name", "size", "control_points", "origin", "axis_u", "axis_v", "material", "perturbation"
+    "name", "size", "control_points", "origin", "axis_u", "axis_v", "material", "perturbation", "velocity"
 )
 _PERTURBATION_KEYS = ("amplitude", "waves")
 _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "duration")
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
 _TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
-_OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane")
+_OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane", "spin")
+_SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
 _SPHERE_KEYS = ("center", "radius", "subdivisions")
 _PLANE_KEYS = ("point", "normal", "size")
 _CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact")
@@ -396,7 +418,7 @@ def _read_cloth(t: _Table, default_name: str, scene_material: Material) -> Cloth
         control_points=control_points,
         material=material,
         perturbation=perturbation,
-        **_given(origin=t.numbers("origin", 3), axis_u=axis_u, axis_v=axis_v),
+        **_given(origin=t.numbers("origin", 3), axis_u=axis_u, axis_v=axis_v, velocity=t.numbers("velocity", 3)),
     )
 
 
@@ -521,6 +543,13 @@ def _read_obstacle(t: _Table, index: int, base: Path) -> ObstacleSpec:
         pl = t.table("plane", _PLANE_KEYS)
         values.update(_given(point=pl.numbers("point", 3), normal=pl.unit_vector("normal"),
                              size=pl.number("size", gt=0)))
+    if "spin" in t:
+        if kind == "animation":
+            t.fail(t.key("spin"), "an animated body already moves; spin applies to static obstacles")
+        st = t.table("spin", _SPIN_KEYS)
+        values["spin"] = Spin(**_given(axis=st.unit_vector("axis"), center=st.numbers("center", 3),
+                                       speed=st.number("speed", required=True), start=st.number("start", ge=0),
+                                       ramp=st.number("ramp", ge=0)))
     return ObstacleSpec(**values)
 
 

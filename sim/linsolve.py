@@ -36,3 +36,34 @@ class CholeskySolver:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._factor(b)
+
+
+def pcg(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_iterations: int):
+    """Preconditioned conjugate gradients for the SPD system A x = b from x0.
+
+    Returns (x, iterations, converged). Every iterate lowers the quadratic model
+    x.A x / 2 - b.x, so an early stop still gives a descent direction for Newton.
+    """
+    x = x0.copy()
+    r = b - apply_A(x)
+    stop = rtol * np.linalg.norm(b)
+    if np.linalg.norm(r) <= stop:
+        return x, 0, True
+    z = precondition(r)
+    d = z.copy()
+    rz = float(r @ z)
+    for k in range(1, max_iterations + 1):
+        Ad = apply_A(d)
+        dAd = float(d @ Ad)
+        if dAd <= 0.0:
+            return x, k, False
+        a = rz / dAd
+        x += a * d
+        r -= a * Ad
+        if np.linalg.norm(r) <= stop:
+            return x, k, True
+        z = precondition(r)
+        rz_new = float(r @ z)
+        d = z + (rz_new / rz) * d
+        rz = rz_new
+    return x, max_iterations, False

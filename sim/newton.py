@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .linsolve import pcg
 from .potential import IncrementalPotential
 from .stats import StepStats
 
@@ -25,6 +26,8 @@ class NewtonOptions:
     min_step: float = 1e-12
     project: bool = True
     record_gradients: bool = False  # keep ||g_free|| per iteration (convergence tests)
+    pcg_rtol: float = 1e-8  # CG on the exact Hessian when contact couplings leave the pattern
+    pcg_max_iterations: int = 100
 
 
 def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats: StepStats) -> np.ndarray:
@@ -48,6 +51,14 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
             # first-order push of the remaining body motion.
             rhs = g + ip.coupling(C, drive.remaining())[free].ravel()
         p = -ip.solver.solve(rhs)
+        if ip.correction is not None:
+            # Couplings outside the fixed pattern (contact between distant parts or between
+            # pieces) were moved onto the diagonal to keep one factorization pattern; solve
+            # with the exact Hessian by CG preconditioned with that factor (partial
+            # factorization, paper section 5.3), so the step keeps momentum.
+            p, k, ok = pcg(ip.apply_hessian, -rhs, ip.solver.solve, p, opts.pcg_rtol, opts.pcg_max_iterations)
+            stats.extra["pcg_iterations"] = stats.extra.get("pcg_iterations", 0) + k
+            stats.extra["pcg_failures"] = stats.extra.get("pcg_failures", 0) + (not ok)
         t3 = time.perf_counter()
         stats.t_assembly += t1 - t0
         stats.t_factorization += t2 - t1

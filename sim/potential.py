@@ -7,9 +7,10 @@ Newton iteration copies them and lets the state-dependent energies add their blo
 from __future__ import annotations
 
 import numpy as np
+
 import scipy.sparse as sp
 
-from .assembly import BlockPattern, add_dof_matrix
+from .assembly import BlockPattern
 from .energies.base import Energy
 from .linsolve import CholeskySolver
 
@@ -33,13 +34,10 @@ class IncrementalPotential:
         self.data = self.const_data.copy()
         self.matrix = self.pattern.matrix(self.data)
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
+        self.correction = None
         self.solver = CholeskySolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
-        # Rows of the free DOFs among all 3 n_cp DOFs, to restrict variable-pattern Hessians.
-        dofs = (3 * self.free_points[:, None] + np.arange(3)).ravel()
-        self._select = sp.csr_matrix((np.ones(dofs.size), (np.arange(dofs.size), dofs)),
-                                     shape=(dofs.size, 3 * self.n_cp))
 
     def value(self, C: np.ndarray) -> float:
         return sum(e.value(C) for e in self.energies)
@@ -60,11 +58,31 @@ class IncrementalPotential:
         for e in self.energies:
             if not e.constant_hessian:
                 e.add_hessian(C, self.data, project)
-        extra = [H for e in self.variable if (H := e.hessian_matrix(C, project)) is not None]
-        self.moved_entries = 0
-        if extra:
-            S = self._select
-            self.moved_entries = add_dof_matrix(self.pattern, S @ sum(extra[1:], extra[0]) @ S.T, self.data)
+        self.moved_entries = sum(e.moved_entries for e in self.variable)
+        self._collect_correction()
+
+    def _collect_correction(self) -> None:
+        """`correction` = (B, shift): the exact Hessian is matrix - diag(shift) + B, where B
+        holds the couplings outside the pattern (symmetric); None when nothing moved."""
+        parts = [e for e in self.variable if e.off_pattern is not None]
+        self.correction = None
+        if not parts:
+            return
+        n = self.pattern.n_dofs
+        r = np.concatenate([e.off_pattern[0] for e in parts])
+        c = np.concatenate([e.off_pattern[1] for e in parts])
+        v = np.concatenate([e.off_pattern[2] for e in parts])
+        L = sp.csr_matrix((v, (r, c)), shape=(n, n))
+        self.correction = ((L + L.T).tocsr(), sum(e.shift for e in parts))
+
+    def apply_hessian(self, p: np.ndarray) -> np.ndarray:
+        """The exact assembled Hessian (free DOFs) times p, moved couplings included."""
+        L = self.matrix
+        y = L @ p + L.T @ p - L.diagonal() * p
+        if self.correction is not None:
+            B, shift = self.correction
+            y += B @ p - shift * p
+        return y
 
     def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:
         """Largest fraction of C0 -> C1 every energy allows (collision-free for contact),

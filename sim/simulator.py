@@ -27,6 +27,7 @@ from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
 from .energies.barrier import BarrierEnergy
+from .energies.friction import FrictionEnergy
 from .newton import NewtonOptions, minimize
 from .pins import PinGroup, select
 from .potential import IncrementalPotential
@@ -149,10 +150,14 @@ class Simulator:
         self.barrier = None
         self.drive = None
         self.stiffness = None
+        self.friction = None
         if contact is not None and contact.enabled:
             self.barrier = self._contact_energy(contact)
             self.energies.append(self.barrier)
             self.drive = BodyDrive(self.barrier.contact, self.obstacles)
+            if contact.mu > 0.0:
+                self.friction = FrictionEnergy(self.barrier, contact.mu, contact.eps_v, self.dt)
+                self.energies.append(self.friction)
             if contact.adaptive_kappa:
                 density = float(np.mean([m.areal_density for m in materials]))
                 self.stiffness = AdaptiveStiffness(self.barrier, density, float(np.linalg.norm(gravity)), self.dt)
@@ -208,11 +213,14 @@ class Simulator:
         tm = scene.time
         opts = newton or NewtonOptions()
         opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
-        return cls(
+        sim = cls(
             patches, [c.material for c in scene.cloths], groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, scene.output.mesh_resolution,
             scene.contact, [load_obstacle(o) for o in scene.obstacles],
         )
+        for c, piece in zip(scene.cloths, sim.pieces):
+            sim.V[piece.slice] = np.asarray(c.velocity, float)
+        return sim
 
     # ------------------------------------------------------------------ state access
     @property
@@ -265,6 +273,8 @@ class Simulator:
             # The predictor must not tunnel through a barrier thinner than one step of
             # motion: move only the collision-free fraction of the way (CCD), bodies
             # included; Newton carries on with whatever body motion remains.
+            if self.friction is not None:
+                self.friction.lag(self.C)
             self.drive.set_time(t_next)
             C_start = np.where(self.pinned[:, None], targets, self.C)
             alpha = self.potential.max_step(C_start, x0, self.drive.target if self.drive.pending else None)

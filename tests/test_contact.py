@@ -113,3 +113,55 @@ def test_projected_contact_hessian_stays_psd_in_pattern():
 def test_initial_intersection_is_an_input_error():
     with pytest.raises(InputError, match="intersect"):
         Simulator.from_scene(loads_scene(DROP.format(height=0.1)))
+
+
+def _fd_check(e, C, rows, h, rtol):
+    """Central differences of value -> gradient and gradient -> Hessian columns."""
+    g = np.zeros_like(C)
+    e.add_gradient(C, g)
+    H = e.hessian_matrix(C, project=False).toarray()
+    gs, hs = np.abs(g).max(), np.abs(H).max()
+    for i in rows:
+        for d in range(3):
+            Cp, Cm = C.copy(), C.copy()
+            Cp[i, d] += h
+            Cm[i, d] -= h
+            fd = (e.value(Cp) - e.value(Cm)) / (2 * h)
+            assert fd == pytest.approx(g[i, d], rel=rtol, abs=rtol * gs)
+            gp, gm = np.zeros_like(C), np.zeros_like(C)
+            e.add_gradient(Cp, gp)
+            e.add_gradient(Cm, gm)
+            np.testing.assert_allclose(H[:, 3 * i + d], ((gp - gm) / (2 * h)).ravel(), rtol=rtol, atol=rtol * hs)
+
+
+def test_friction_derivatives_on_control_points():
+    text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-2")
+    sim = Simulator.from_scene(loads_scene(text))
+    f = sim.friction
+    f.lag(sim.C)
+    assert f.active
+    rng = np.random.default_rng(2)
+    # Slide tangentially by more than eps_v dt (dynamic regime) at some points, less at others.
+    C = sim.C + 1e-4 * rng.standard_normal(sim.C.shape) * [1, 1, 0]
+    g = np.zeros_like(C)
+    f.add_gradient(C, g)
+    rows = np.flatnonzero(np.abs(g).sum(1) > 0)
+    assert rows.size > 0 and f.value(C) > 0.0
+    _fd_check(f, C, rows[:4], 1e-8, 1e-4)
+
+
+def test_friction_opposes_sliding():
+    """The friction force on a sliding sheet points against the slide, with magnitude
+    mu x (normal force) once the slide is faster than eps_v."""
+    text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-3")
+    sim = Simulator.from_scene(loads_scene(text))
+    sim.friction.lag(sim.C)
+    slide = np.array([0.01, 0.0, 0.0])  # 1 m/s over dt = 0.01 s, far above eps_v
+    g = np.zeros_like(sim.C)
+    sim.friction.add_gradient(sim.C + slide, g)
+    gb = np.zeros_like(sim.C)
+    sim.barrier.add_gradient(sim.C, gb)
+    assert g[:, 0].sum() > 0.0  # energy grows along the slide: the force opposes it
+    assert abs(g[:, 1].sum()) < 0.05 * g[:, 0].sum()  # no sideways force
+    normal = np.abs(gb[:, 2].sum())
+    assert g[:, 0].sum() == pytest.approx(0.3 * normal, rel=0.05)

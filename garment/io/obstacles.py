@@ -21,18 +21,38 @@ class ObstacleGeometry:
     vertices: np.ndarray
     faces: np.ndarray
     sequence: BodySequence | None = None
+    spin: object | None = None  # garment.scene.Spin
 
     @property
     def animated(self) -> bool:
-        return self.sequence is not None
+        return self.sequence is not None or self.spin is not None
 
     def at(self, t: float) -> np.ndarray:
         """(V, 3) vertex positions at time t."""
-        return self.sequence.at(t) if self.sequence is not None else self.vertices
+        if self.sequence is not None:
+            return self.sequence.at(t)
+        if self.spin is not None:
+            return _rotate(self.vertices, self.spin.axis, self.spin.center, self.spin.angle(t))
+        return self.vertices
+
+
+def _rotate(V: np.ndarray, axis, center, angle: float) -> np.ndarray:
+    """V rotated by `angle` about the unit `axis` through `center` (Rodrigues)."""
+    k = np.asarray(axis, float)
+    c = np.asarray(center, float)
+    X = V - c
+    cos, sin = np.cos(angle), np.sin(angle)
+    return c + X * cos + np.cross(k, X) * sin + np.outer(X @ k, k) * (1.0 - cos)
 
 
 def load_obstacle(spec) -> ObstacleGeometry:
     """Geometry of a garment.scene.ObstacleSpec."""
+    geometry = _geometry(spec)
+    geometry.spin = getattr(spec, "spin", None)
+    return geometry
+
+
+def _geometry(spec) -> ObstacleGeometry:
     import trimesh
 
     if spec.kind == "plane":

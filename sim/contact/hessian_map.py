@@ -102,6 +102,8 @@ class ContactHessianMap:
                 self.sup_free, self.sup_w, self.colstart, self.rows)
         _map_blocks(self.color_ptr, self.color_groups, *args, self.pos, data, off)
         self.moved_entries = 0
+        self.off_pattern = None
+        self.shift = None
         total = int(off.sum())
         if total:
             groups = np.flatnonzero(off).astype(np.int64)
@@ -111,12 +113,17 @@ class ContactHessianMap:
 
     def _move_to_diagonal(self, r, c, val, data) -> int:
         """Sum off-pattern contributions per scalar entry (r, c) and add |sum| to the
-        diagonal on both rows; returns the number of nonzero moved entries."""
+        diagonal on both rows; returns the number of nonzero moved entries. The moved
+        entries (`off_pattern`, one triangle) and the diagonal added (`shift`) are kept, so
+        a solver can still apply the exact Hessian (partial factorization, sim/newton.py)."""
         n3 = 3 * self.pattern.n_free
         uk, inv = np.unique(r * n3 + c, return_inverse=True)
-        s = np.abs(np.bincount(inv.ravel(), weights=val))
+        signed = np.bincount(inv.ravel(), weights=val)
+        s = np.abs(signed)
         d = np.bincount(uk // n3, s, minlength=n3) + np.bincount(uk % n3, s, minlength=n3)
         data[self.diag_pos] += d
+        self.off_pattern = (uk // n3, uk % n3, signed)
+        self.shift = d
         return int(np.count_nonzero(s))
 
 

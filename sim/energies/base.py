@@ -16,9 +16,14 @@ from ..assembly import BlockPattern
 class Energy:
     #: True when the Hessian does not depend on C (it is then assembled once per pattern).
     constant_hessian: bool = False
-    #: True when the Hessian's pattern changes with C (contact): it is then returned by
-    #: `hessian_matrix` as a sparse matrix on all control-point DOFs instead.
+    #: True for contact energies: their couplings change with C (those outside the fixed
+    #: pattern are moved onto the diagonal), they bound steps (CCD) and feel moving bodies.
     variable_pattern: bool = False
+    moved_entries: int = 0
+    #: Contact energies, last assembly: the couplings moved out of the pattern (rows, cols,
+    #: values on free DOFs, one triangle) and the diagonal added in their place.
+    off_pattern = None
+    shift = None
 
     def stencils(self) -> list[np.ndarray]:
         """Control-point stencils (Q, K) whose pairs the Hessian pattern must hold."""
@@ -36,10 +41,6 @@ class Energy:
     def add_hessian(self, C: np.ndarray, data: np.ndarray, project: bool = True) -> None:
         """Add the (PSD-projected when `project`) Hessian into pattern data."""
         raise NotImplementedError
-
-    def hessian_matrix(self, C: np.ndarray, project: bool = True):
-        """Variable-pattern energies: the (3 n_cp)^2 scipy Hessian, or None when zero."""
-        return None
 
     def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:
         """Largest fraction of the step C0 -> C1 this energy allows (CCD for contact; the

@@ -1,0 +1,94 @@
+"""Lagged, smoothed IPC friction (Li et al. 2020 section 5; ipctk's convergent form),
+mapped to control points.
+
+D(C) = dt sum_k mu lambda_k f0(|T_k^T v_k|),  v = (x(C) - x_n) / dt,
+
+with x_n the collision-mesh vertices at the start of the step (bodies included, so a moving
+body drags the cloth), and the normal forces lambda_k and tangent bases T_k lagged there:
+re-linearised once per step (`lag`). ipctk evaluates D and its derivatives in v; in C,
+grad = W^T dD/dv and Hess = W^T d2D/dv2 W / dt.
+"""
+
+from __future__ import annotations
+
+import ipctk
+import numpy as np
+
+from .barrier import BarrierEnergy
+from .base import Energy
+
+
+class FrictionEnergy(Energy):
+    variable_pattern = True
+    moved_entries = 0
+
+    def __init__(self, barrier: BarrierEnergy, mu: float, eps_v: float, dt: float):
+        self.barrier = barrier
+        self.contact = barrier.contact
+        self.mu = float(mu)
+        self.dt = float(dt)
+        self.potential = ipctk.FrictionPotential(float(eps_v))
+        self.tangential = ipctk.TangentialCollisions()
+        self.x_n = None
+        self._H_cb = None
+
+    def stencils(self):
+        return self.barrier.stencils()
+
+    def bind(self, pattern):
+        self._pattern = pattern
+
+    def lag(self, C: np.ndarray) -> None:
+        """Re-linearise at the start of a step: contacts, normal forces and bases at C."""
+        self.x_n = self.contact.vertices(C)
+        self.barrier._update(C)
+        normal = ipctk.BarrierPotential(self.barrier.barrier, self.barrier.dhat, self.barrier.kappa)
+        self.tangential.build(self.contact.mesh, self.x_n, self.barrier.collisions, normal, self.mu)
+
+    @property
+    def active(self) -> bool:
+        return self.x_n is not None and len(self.tangential) > 0
+
+    def _v(self, C):
+        return np.asfortranarray((self.contact.vertices(C) - self.x_n) / self.dt)
+
+    def value(self, C):
+        if not self.active:
+            return 0.0
+        return self.dt * float(self.potential(self.tangential, self.contact.mesh, self._v(C)))
+
+    def add_gradient(self, C, out):
+        if not self.active:
+            return
+        g = self.contact.cloth_part(self.potential.gradient(self.tangential, self.contact.mesh, self._v(C)))
+        out += (self.contact.W3.T @ g).reshape(-1, 3)
+
+    def _vertex_hessian(self, C, project=True):
+        method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
+        H = self.potential.hessian(self.tangential, self.contact.mesh, self._v(C), method) / self.dt
+        n = 3 * self.contact.n_cloth
+        self._H_cb = H.tocsr()[:n, n:]
+        return H
+
+    def hessian_matrix(self, C, project=True):
+        """W3^T H W3 on all control-point DOFs, or None when inactive (tests, tools)."""
+        if not self.active:
+            return None
+        n = 3 * self.contact.n_cloth
+        W3 = self.contact.W3
+        return (W3.T @ self._vertex_hessian(C, project).tocsr()[:n, :n] @ W3).tocsr()
+
+    def add_hessian(self, C, data, project=True):
+        self._H_cb = None
+        self.moved_entries = 0
+        if self.active:
+            self.moved_entries = self.barrier.hmap.add(self._vertex_hessian(C, project), data)
+        hmap = self.barrier.hmap
+        self.off_pattern, self.shift = (hmap.off_pattern, hmap.shift) if self.moved_entries else (None, None)
+
+    def coupling(self, C, dB):
+        if not self.active:
+            return np.zeros_like(C)
+        if self._H_cb is None:
+            self._vertex_hessian(C)
+        return (self.contact.W3.T @ (self._H_cb @ dB.ravel())).reshape(-1, 3)
