@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
+from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze, cholesky
 
 
 class CholeskySolver:
@@ -36,6 +36,20 @@ class CholeskySolver:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._factor(b)
+
+
+def solve_once(A_lower: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
+    """Solve with a matrix whose pattern is seen once: analyse, factor (shifted if not
+    positive definite, as CholeskySolver does), solve."""
+    scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
+    shift = 0.0
+    while True:
+        try:
+            return cholesky(A_lower, beta=shift, mode="supernodal")(b)
+        except CholmodNotPositiveDefiniteError:
+            shift = max(1e-10 * scale, 10.0 * shift)
+            if shift > scale:
+                raise
 
 
 def pcg(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_iterations: int):

@@ -75,6 +75,25 @@ class IncrementalPotential:
         L = sp.csr_matrix((v, (r, c)), shape=(n, n))
         self.correction = ((L + L.T).tocsr(), sum(e.shift for e in parts))
 
+    def coupling_bound(self) -> float:
+        """Gershgorin bound on ||D^-1 B||_inf, D the in-pattern Hessian, B the moved
+        couplings (0 when nothing moved): below 1, the factor of D (plus the moved
+        diagonal) preconditions the exact system well (paper section 5.3)."""
+        if self.correction is None:
+            return 0.0
+        shift = self.correction[1]
+        d = self.matrix.diagonal() - shift
+        return float(np.max(shift / np.maximum(d, 1e-300)))
+
+    def exact_lower(self) -> sp.csc_matrix:
+        """Lower triangle of the exact Hessian, moved couplings merged back (a pattern
+        of its own, for a one-off factorization)."""
+        L = self.matrix.copy()
+        if self.correction is not None:
+            B, shift = self.correction
+            L = (L - sp.diags(shift) + sp.tril(B)).tocsc()
+        return L
+
     def apply_hessian(self, p: np.ndarray) -> np.ndarray:
         """The exact assembled Hessian (free DOFs) times p, moved couplings included."""
         L = self.matrix
