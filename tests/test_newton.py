@@ -228,3 +228,18 @@ def test_quasistatic_plate_converges_in_two_iterations():
     w = np.abs(sim.positions("plate")[:, 2]).max()
     w_ref = 0.00406 * q / mat.bending_stiffness
     assert abs(w / w_ref - 1) < 0.02
+
+
+def test_pcg_solves_spd_systems_and_every_iterate_descends():
+    from sim.linsolve import pcg
+
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((40, 40))
+    A = A @ A.T + 0.1 * np.eye(40)
+    b = rng.standard_normal(40)
+    jacobi = 1.0 / np.diag(A)
+    x, k, ok = pcg(lambda v: A @ v, b, lambda r: jacobi * r, np.zeros(40), 1e-10, 400)
+    assert ok and np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+    # Stopped early, the iterate still lowers the quadratic model (a descent direction).
+    x3, _, ok3 = pcg(lambda v: A @ v, b, lambda r: jacobi * r, np.zeros(40), 1e-14, 3)
+    assert not ok3 and 0.5 * x3 @ A @ x3 - b @ x3 < 0.0
