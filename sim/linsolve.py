@@ -18,6 +18,15 @@ class CholeskySolver:
         self._factor = analyze(A_lower, mode="supernodal")
         self.n_factorizations = 0
 
+    def try_factorize(self, A_lower: sp.csc_matrix) -> bool:
+        """Factor A if it is positive definite; False (and no usable factor) if not."""
+        try:
+            self._factor.cholesky_inplace(A_lower)
+        except CholmodNotPositiveDefiniteError:
+            return False
+        self.n_factorizations += 1
+        return True
+
     def factorize(self, A_lower: sp.csc_matrix) -> float:
         """Factor A (+ shift I if A is not positive definite); returns the shift used."""
         shift = 0.0
@@ -38,9 +47,14 @@ class CholeskySolver:
         return self._factor(b)
 
 
-def solve_once(A_lower: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
+def solve_once(A_lower: sp.csc_matrix, b: np.ndarray, allow_shift: bool = True) -> np.ndarray | None:
     """Solve with a matrix whose pattern is seen once: analyse, factor (shifted if not
-    positive definite, as CholeskySolver does), solve."""
+    positive definite, as CholeskySolver does, or None when `allow_shift` is off), solve."""
+    if not allow_shift:
+        try:
+            return cholesky(A_lower, mode="supernodal")(b)
+        except CholmodNotPositiveDefiniteError:
+            return None
     scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
     shift = 0.0
     while True:

@@ -38,6 +38,7 @@ class IncrementalPotential:
         self.solver = CholeskySolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
+        self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
 
     def value(self, C: np.ndarray) -> float:
         return sum(e.value(C) for e in self.energies)
