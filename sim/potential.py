@@ -27,10 +27,7 @@ class IncrementalPotential:
         self.pattern = BlockPattern.from_stencils(free, [s for e in energies for s in e.stencils()])
         for e in energies:
             e.bind(self.pattern)
-        self.const_data = np.zeros(self.pattern.nnz)
-        for e in energies:
-            if e.constant_hessian:
-                e.add_hessian(None, self.const_data)
+        self.refresh_constant()
         self.data = self.const_data.copy()
         self.matrix = self.pattern.matrix(self.data)
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
@@ -39,6 +36,13 @@ class IncrementalPotential:
         self.variable = [e for e in energies if e.variable_pattern]
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
+
+    def refresh_constant(self) -> None:
+        """(Re)assemble the constant Hessian terms (after a time-step change)."""
+        self.const_data = np.zeros(self.pattern.nnz)
+        for e in self.energies:
+            if e.constant_hessian:
+                e.add_hessian(None, self.const_data)
 
     def value(self, C: np.ndarray) -> float:
         return sum(e.value(C) for e in self.energies)

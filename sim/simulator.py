@@ -257,6 +257,18 @@ class Simulator:
         raise KeyError(f"no cloth named {name!r}")
 
     # ------------------------------------------------------------------ stepping
+    def set_dt(self, dt: float) -> None:
+        """Change the time step (for step splitting): inertia, friction and Newton's
+        step-size criterion follow; bodies and pins are functions of time already."""
+        self.dt = float(dt)
+        self.newton.dt = self.dt
+        if self.inertia is not None:
+            self.inertia.dt = self.dt
+            # The inertia Hessian M / dt^2 is a constant term: rebuild the constant part.
+            self.potential.refresh_constant()
+        if self.friction is not None:
+            self.friction.dt = self.dt
+
     def step(self) -> StepStats:
         """Advance one time step (or one quasi-static load increment)."""
         start = _time.perf_counter()
