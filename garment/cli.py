@@ -11,7 +11,7 @@ import importlib
 import sys
 
 from garment.commands import COMMANDS
-from garment.errors import InputError
+from garment.errors import InputError, RunStopped
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,6 +29,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)  # plain: no markup, no wrapping
         return 2
+    except RunStopped as e:
+        print(f"{e.prefix}: {e}", file=sys.stderr)
+        return e.exit_code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

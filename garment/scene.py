@@ -237,7 +237,7 @@ class ObstacleSpec:
     fps: float | None = None
     spin: Spin | None = None
     scale: float = 1.0
-    up: str = "z"
+    up: str | None = None  # "z" or "y"; None (not given): Z-up, and an animated body is checked for it
     translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
     center: tuple[float, float, float] = (0.0, 0.0, 0.0)
     radius: float = 0.0

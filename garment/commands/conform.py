@@ -121,10 +121,7 @@ def run(args) -> int:
                              tolerance=None if args.tolerance is None else 1e-3 * args.tolerance,
                              mips=MipsOptions(), split=args.split)
     out_dir = Path(args.output)
-    try:  # fail before the work, not after it
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(f"{out_dir}: cannot create the output directory ({e.strerror})") from None
+    # Bad input leaves nothing behind: read it before creating the output directory.
     panels, seams = read_input(args.input, spacing=min(span / 6.0, 0.003))
     if args.panels:
         wanted = [p.strip() for p in args.panels.split(",") if p.strip()]
@@ -133,6 +130,11 @@ def run(args) -> int:
             raise InputError(f"{args.input}: no panel named {', '.join(sorted(missing))}")
         panels = [p for p in panels if p.name in wanted]
     corners = parse_corners(args.corners)
+    created = not out_dir.exists()
+    try:  # fail before the work, not after it
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"{out_dir}: cannot create the output directory ({e.strerror})") from None
 
     rows = []
     quiet = args.quiet or args.json
@@ -147,6 +149,12 @@ def run(args) -> int:
                                              f"{rep['seconds']:.2f} s"))
 
         ps = conform_all(panels, seams, options, corners=corners, on_panel=on_panel)
+    if not ps.patches:  # every panel failed: an empty patch file would only mislead
+        if created:
+            out_dir.rmdir()
+        for r in rows:
+            print(f"error: {r.get('error') or r['panel'] + ': could not be conformed'}", file=__import__("sys").stderr)
+        return 1
     try:
         out = save_patchset(out_dir / "patches.json", ps)
     except OSError as e:

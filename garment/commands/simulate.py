@@ -1,14 +1,22 @@
 """`garment simulate SCENE.toml [-o run.rrd] [--connect [URL] | --serve [PORT]]
 [--control-net] [--render out.mp4|out.gif|DIR [--render-size WxH] [--orbit] [--fps F]]
-[--mesh-dir DIR --format npz|obj|ply] [--frames N] [-q]`."""
+[--mesh-dir DIR --format npz|obj|ply] [--frames N] [--checkpoint FILE] [--checkpoint-every K]
+[--resume] [--max-splits N] [--deterministic] [-q]`.
+
+Long runs: see sim/driver.py (checkpoints, resuming, step splitting) and `StopOnSignal`."""
 
 from __future__ import annotations
 
 import dataclasses
+import os
+import signal
+import threading
 import time
 from pathlib import Path
 
-from garment.errors import InputError
+from rich.markup import escape
+
+from garment.errors import InputError, Interrupted
 from garment.scene import Scene, load_scene
 
 from .console import err, progress
@@ -19,15 +27,25 @@ DEFAULT_PORT = 9876  # rerun's default gRPC port
 def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None,
              mesh_format: str = "npz", quiet: bool = False, *, connect: str | None = None,
              serve: int | None = None, control_net: bool = False, render_to: Path | None = None,
-             render_options=None) -> list:
+             render_options=None, checkpoint: Path | None = None, checkpoint_every: int = 10,
+             resume: bool = False, max_splits: int | None = None, deterministic: bool = False) -> list:
     """Run a scene to the end, writing the requested outputs. Returns the step stats.
 
     rrd: Rerun recording file; connect: URL of a running Rerun viewer; serve: port to host
     a gRPC server on (waits for Ctrl-C after the run so viewers can keep reading);
     control_net: also log control nets; render_to: .mp4, .gif or a PNG folder rendered
     after the run with `render_options` (a `viz.render.RenderOptions`).
+    checkpoint: state file written every `checkpoint_every` frames, at the end, on
+    SIGINT/SIGTERM and on failure; resume: continue from it (the recording goes to the
+    next free `<rrd stem>.partN.rrd`, existing per-frame files are kept). max_splits: a
+    failing step is retried as halves down to dt / 2^max_splits. deterministic: run ipctk
+    on one thread, so reruns and resumed runs repeat an uninterrupted run bit for bit.
+    Raises Interrupted (exit 130) after a signal, SimulationError (exit 3) on failure.
     """
     from garment.io import MeshExportSink
+    from sim import checkpoint as ckpt
+    from sim.driver import CheckpointPolicy, SkipExisting, drive, segment_path
+    from sim.recovery import DEFAULT_SPLITS
     from sim.simulator import Simulator
     from viz.rerun_sink import RerunSink, check_viewer_reachable
 
@@ -38,19 +56,38 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
             check_viewer_reachable(connect)
         except ConnectionError as e:
             raise InputError(f"--connect: {e}") from None
+    if deterministic:
+        import ipctk
+
+        ipctk.set_num_threads(1)  # TBB reductions in ipctk otherwise vary from run to run
+    digest = ckpt.scene_hash(scene)
+    state = load_resume_state(checkpoint, digest, quiet) if resume else None
+    if state is not None and state.frame >= scene.time.frames:
+        if not quiet:
+            err.print(f"nothing to do: {checkpoint} is at frame {state.frame} already (--frames N extends the run)")
+        return []
 
     start = time.perf_counter()
-    sim = Simulator.from_scene(scene)
+    try:
+        sim = Simulator.from_scene(scene)
+    except InputError as e:
+        first = str(e).split(" ", 1)[0]
+        if scene.path is not None and not first.endswith(":"):  # name a file, as scene errors do
+            raise InputError(f"{scene.path}: {e}") from None
+        raise
     if not quiet:
         err.print(f"[dim]{scene.name}: {sim.n_dofs} DOFs, built in {time.perf_counter() - start:.2f} s")
     sinks = []
     rerun_sink = None
+    if rrd is not None and state is not None:
+        rrd = segment_path(rrd)  # earlier segments stay as they are
     if rrd is not None or connect is not None or serve is not None:
         nets = (lambda: {p.name: sim.control_points(p.name) for p in sim.pieces}) if control_net else None
         rerun_sink = RerunSink(rrd, connect=connect, serve=serve, recording_name=scene.name, control_nets=nets)
         sinks.append(rerun_sink)
     if mesh_dir is not None:
-        sinks.append(MeshExportSink(mesh_dir, mesh_format))
+        mesh_sink = MeshExportSink(mesh_dir, mesh_format)
+        sinks.append(SkipExisting(mesh_sink) if state is not None else mesh_sink)
     frames = None
     if render_to is not None:
         from viz.render import FrameBuffer
@@ -59,15 +96,26 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
         sinks.append(frames)
 
     tm = scene.time
+    splits = DEFAULT_SPLITS if max_splits is None else max_splits
+    policy = CheckpointPolicy(checkpoint, checkpoint_every, digest)
+    first = state.frame if state is not None else 0
     try:
-        with progress(quiet) as bar:
-            task = bar.add_task(scene.name, total=tm.frames * tm.steps_per_frame, status="")
-            stats = sim.run(tm.frames, tm.steps_per_frame, sinks,
-                            lambda st: bar.update(task, advance=1, status=step_line(st)))
+        with progress(quiet) as bar, StopOnSignal(quiet) as stop:
+            task = bar.add_task(scene.name, total=max(tm.frames - first, 0) * tm.steps_per_frame, status="")
+            result = drive(sim, tm.frames, tm.steps_per_frame, sinks, resume=state, checkpoint=policy,
+                           should_stop=stop.requested, floor=tm.dt / 2**splits,
+                           on_step=lambda st: bar.update(task, advance=1, status=step_line(st)),
+                           on_warning=lambda msg: err.print(f"[yellow]warning:[/] {escape(msg)}"))
+        stats = result.stats
         if not quiet:
-            print_run_summary(stats, [rrd, mesh_dir])
-            if rerun_sink is not None:
+            if stats:
+                print_run_summary(stats, [rrd, mesh_dir, checkpoint if result.checkpoints else None])
+            if result.splits:
+                err.print(f"[yellow]{result.splits} steps were split to converge")
+            if rerun_sink is not None and stats:
                 print_logging_cost(rerun_sink.seconds, sum(s.t_total for s in stats))
+        if result.stopped:
+            raise Interrupted(stopped_message(result.last_frame, tm.frames, checkpoint, [rrd, mesh_dir]))
         if frames is not None:
             render_frames(frames.meshes, frames.frames(), render_to, render_options, quiet)
         if rerun_sink is not None and serve is not None:
@@ -76,6 +124,77 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
         if rerun_sink is not None:
             rerun_sink.shutdown()  # a served run interrupted early still finishes its file
     return stats
+
+
+def load_resume_state(path: Path | None, digest: str, quiet: bool):
+    """The checkpoint to resume from, checked against the scene."""
+    from sim.checkpoint import read_checkpoint, thread_count
+
+    if path is None:
+        raise InputError("--resume: no checkpoint file; give --checkpoint FILE or an output (-o, --mesh-dir)")
+    state = read_checkpoint(path)
+    if state.scene_hash != digest:
+        raise InputError(f"{path}: this checkpoint was written for a different scene (or different mesh "
+                         "files); run without --resume to start over")
+    if state.threads != thread_count() and not quiet:
+        err.print(f"[yellow]warning: the checkpoint was written with (numba, ipctk) threads {state.threads}, "
+                  f"this run has {thread_count()}: frames will differ from an uninterrupted run by round-off "
+                  "(use the same thread count, and --deterministic for both runs)")
+    if not quiet:
+        err.print(f"[dim]resuming after frame {state.frame} (t = {state.state.t:.4g} s) from {path}")
+    return state
+
+
+def stopped_message(last: int, total: int, checkpoint: Path | None, outputs) -> str:
+    done = ", ".join(str(p) for p in outputs if p is not None)
+    saved = (f"checkpoint written to {checkpoint}; run the same command with --resume to continue"
+             if checkpoint is not None else "no checkpoint (no file output; pass --checkpoint FILE to get one)")
+    return (f"stopped after frame {last} of {total}"
+            + (f"; {done} hold every completed frame" if done else "") + f"; {saved}")
+
+
+def default_checkpoint(rrd: Path | None, mesh_dir: Path | None) -> Path | None:
+    """Next to the first file output: run.rrd -> run.ckpt.npz, frames/ -> frames.ckpt.npz."""
+    if rrd is not None:
+        return rrd.with_name(f"{rrd.stem}.ckpt.npz")
+    if mesh_dir is not None:
+        return mesh_dir.with_name(f"{mesh_dir.name}.ckpt.npz")
+    return None
+
+
+class StopOnSignal:
+    """SIGINT/SIGTERM while active: the first asks the run to stop after the current step
+    (`requested()`), a second exits at once (status 130; temporary files may remain, final
+    names are never half-written). Handlers are restored on exit."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self, quiet: bool = False):
+        self.quiet = quiet
+        self.count = 0
+        self._previous = {}
+
+    def requested(self) -> bool:
+        return self.count > 0
+
+    def _handle(self, signum, _frame) -> None:
+        self.count += 1
+        if self.count > 1:
+            os.write(2, b"\ninterrupted again: exiting now\n")
+            os._exit(130)
+        os.write(2, f"\n{signal.Signals(signum).name}: stopping after the current step "
+                    "(send it again to quit at once)\n".encode())
+
+    def __enter__(self) -> "StopOnSignal":
+        if threading.current_thread() is threading.main_thread():  # signal() works only there
+            for s in self.SIGNALS:
+                self._previous[s] = signal.signal(s, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._previous.items():
+            signal.signal(s, h)
+        self._previous.clear()
 
 
 def step_line(st) -> str:
@@ -171,8 +290,15 @@ def run(args) -> int:
         if not args.fps > 0:
             raise InputError(f"--fps: must be > 0, got {args.fps}")
         options = RenderOptions(size=size, fps=args.fps, orbit=args.orbit)
+    if args.checkpoint_every < 0:
+        raise InputError(f"--checkpoint-every: must be >= 0, got {args.checkpoint_every}")
+    if not 0 <= args.max_splits <= 30:
+        raise InputError(f"--max-splits: must be between 0 and 30, got {args.max_splits}")
+    checkpoint = args.checkpoint if args.checkpoint is not None else default_checkpoint(rrd, mesh_dir)
     simulate(scene, rrd, mesh_dir, args.format or out.mesh_format, args.quiet, connect=args.connect,
-             serve=args.serve, control_net=args.control_net, render_to=args.render, render_options=options)
+             serve=args.serve, control_net=args.control_net, render_to=args.render, render_options=options,
+             checkpoint=checkpoint, checkpoint_every=args.checkpoint_every, resume=args.resume,
+             max_splits=args.max_splits, deterministic=args.deterministic)
     return 0
 
 
@@ -201,5 +327,15 @@ def register(sub) -> None:
     s.add_argument("--mesh-dir", type=Path, help="directory for per-frame meshes")
     s.add_argument("--format", choices=("npz", "obj", "ply"), help="per-frame mesh format")
     s.add_argument("--frames", type=int, help="override [time].frames")
+    s.add_argument("--checkpoint", type=Path, metavar="FILE",
+                   help="state file for --resume (default: next to the first output, run.rrd -> run.ckpt.npz)")
+    s.add_argument("--checkpoint-every", type=int, default=10, metavar="K",
+                   help="write the checkpoint every K frames (10; 0: only at the end, on a signal or failure)")
+    s.add_argument("--resume", action="store_true",
+                   help="continue from the checkpoint; the recording continues in run.part2.rrd, ...")
+    s.add_argument("--max-splits", type=int, default=4, metavar="N",
+                   help="retry a failing step as halves down to dt / 2^N before giving up (4)")
+    s.add_argument("--deterministic", action="store_true",
+                   help="run contact queries on one thread: reruns and resumed runs repeat frames bit for bit")
     s.add_argument("-q", "--quiet", action="store_true")
     s.set_defaults(func=run)

@@ -9,6 +9,7 @@ in natural order (`shell2.obj` before `shell10.obj`). Positions are converted to
 from __future__ import annotations
 
 import re
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from garment.errors import InputError
 
 # A body taller than this after scaling is almost certainly in centimetres or millimetres.
 _MAX_EXTENT_M = 5.0
+_TALL_M = 1.0  # bodies this long along Y (m) are checked for a Y-up export
 
 
 @dataclass
@@ -68,6 +70,9 @@ def load_sequence(path: Path, scale: float = 1.0, up: str = "z", translate=(0.0,
 
 
 def _read_npz(path: Path):
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"{path}: not an NPZ archive (a body sequence needs arrays verts (T, V, 3), "
+                         "faces (F, 3) and frame_dt)")
     try:
         data = np.load(path, allow_pickle=False)
     except Exception as e:  # numpy raises several types for non-NPZ files
@@ -129,3 +134,13 @@ def _check(path: Path, frames: np.ndarray, faces: np.ndarray) -> None:
     if extent > _MAX_EXTENT_M:
         raise InputError(f"{path}: the body is {extent:.3g} m across after scaling; the file is probably "
                          f"not in metres (set `scale`, e.g. 0.01 for centimetres)")
+
+
+def check_up_axis(path: Path, verts: np.ndarray) -> None:
+    """A person-sized body much longer along Y than along Z was most likely exported Y-up
+    (the default of most animation tools); the simulator is Z-up. Only run when the scene
+    does not state `up`, so `up = "z"` accepts a body that really lies along Y."""
+    ext = np.ptp(verts, axis=0)
+    if ext[1] > _TALL_M and ext[1] > 2.5 * ext[2]:
+        raise InputError(f"{path}: the body is {ext[1]:.3g} m long along Y but {ext[2]:.3g} m along Z (up): "
+                         'it looks Y-up; set `up = "y"` on the obstacle (or `up = "z"` if it really lies along Y)')

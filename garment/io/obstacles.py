@@ -9,7 +9,7 @@ import numpy as np
 
 from garment.errors import InputError
 
-from .bodies import BodySequence, load_sequence
+from .bodies import BodySequence, check_up_axis, load_sequence
 
 
 @dataclass
@@ -62,7 +62,9 @@ def _geometry(spec) -> ObstacleGeometry:
         V = np.asarray(m.vertices) + np.asarray(spec.center, float)
         return ObstacleGeometry(spec.name, V, np.asarray(m.faces, np.int32))
     if spec.kind == "animation":
-        seq = load_sequence(spec.animation, spec.scale, spec.up, spec.translate, spec.fps)
+        seq = load_sequence(spec.animation, spec.scale, spec.up or "z", spec.translate, spec.fps)
+        if spec.up is None:
+            check_up_axis(spec.animation, seq.frames[0])
         return ObstacleGeometry(spec.name, seq.frames[0].copy(), seq.faces, seq)
     try:
         m = trimesh.load(spec.mesh, force="mesh", process=False)
