@@ -189,6 +189,7 @@ class TimeSpec:
     newton_tol: float = 1e-2
     max_newton_iterations: int = 100
     mode: str = "dynamic"
+    preroll: float = 0.0  # s: animated bodies hold their first pose this long first
 
 
 @dataclass
@@ -263,6 +264,19 @@ class ContactSpec:
 
 
 @dataclass
+class GarmentSpec:
+    """A garment: the patches and seams of a patch file (`garment conform` output), or a
+    panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m). Seams are
+    held by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py)."""
+
+    name: str
+    source: Path
+    knot_span: float = 0.03
+    seam_stiffness: float = 1e6
+    material: Material = PRESETS["cotton"]
+
+
+@dataclass
 class Scene:
     name: str
     path: Path | None
@@ -274,6 +288,7 @@ class Scene:
     description: str = ""
     obstacles: list[ObstacleSpec] = field(default_factory=list)
     contact: ContactSpec = field(default_factory=ContactSpec)
+    garments: list[GarmentSpec] = field(default_factory=list)
 
 
 # --------------------------------------------------------------------------- entry points
@@ -309,8 +324,9 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
     root = _Table(data, source, "", _TOP_KEYS)
     info = root.table("scene", ("name", "description"))
     material = _read_material(root.table("material", _MATERIAL_KEYS), PRESETS["cotton"])
-    cloths = _read_cloths(root, material)
     base = path.parent if path is not None else Path(".")
+    garments = [_read_garment(t, i, base, material) for i, t in enumerate(root.tables("garment", _GARMENT_KEYS))]
+    cloths = _read_cloths(root, material, required=not garments)
     obstacles = [_read_obstacle(t, i, base) for i, t in enumerate(root.tables("obstacle", _OBSTACLE_KEYS))]
     return Scene(
         name=info.string("name") or (path.stem if path else "scene"),
@@ -323,12 +339,14 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
         description=info.string("description", allow_empty=True) or "",
         obstacles=obstacles,
         contact=_read_contact(root, bool(obstacles)),
+        garments=garments,
     )
 
 
 # --------------------------------------------------------------------------- tables
 
-_TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact")
+_TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact", "garment")
+_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_stiffness", "material")
 _MATERIAL_NUMBERS = {  # key -> bounds
     "E_st": {"gt": 0},
     "E_sh": {"ge": 0},
@@ -344,7 +362,7 @@ _CLOTH_KEYS = (
 _PERTURBATION_KEYS = ("amplitude", "waves")
 _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "duration")
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
-_TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode")
+_TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode", "preroll")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
 _OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane", "spin")
 _SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
@@ -374,10 +392,23 @@ def _read_material(t: _Table, base: Material) -> Material:
     )
 
 
-def _read_cloths(root: _Table, material: Material) -> list[ClothSpec]:
+def _read_garment(t: _Table, index: int, base: Path, scene_material: Material) -> GarmentSpec:
+    src = Path(t.string("source", required=True))
+    src = src if src.is_absolute() else base / src
+    if not src.is_file():
+        t.fail(t.key("source"), f"no such file: {src}")
+    span = t.number("knot_span_mm", gt=0)
+    return GarmentSpec(
+        name=t.string("name") or f"garment{index}", source=src,
+        material=_read_material(t.table("material", _MATERIAL_KEYS), scene_material),
+        **_given(knot_span=span / 1000.0 if span else None, seam_stiffness=t.number("seam_stiffness", gt=0)),
+    )
+
+
+def _read_cloths(root: _Table, material: Material, required: bool = True) -> list[ClothSpec]:
     tables = root.tables("cloth", _CLOTH_KEYS)
-    if not tables:
-        root.fail("cloth", "the scene needs at least one [[cloth]] table")
+    if not tables and required:
+        root.fail("cloth", "the scene needs at least one [[cloth]] or [[garment]] table")
     cloths: list[ClothSpec] = []
     first_index: dict[str, int] = {}
     for i, t in enumerate(tables):
@@ -498,6 +529,7 @@ def _read_time(t: _Table) -> TimeSpec:
             newton_tol=t.number("newton_tol", gt=0),
             max_newton_iterations=t.integer("max_newton_iterations", ge=1),
             mode=t.choice("mode", TIME_MODES),
+            preroll=t.number("preroll", ge=0),
         )
     )
 

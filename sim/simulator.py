@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from garment.errors import InputError
+from garment.io.garments import load_garment
 from garment.io.obstacles import load_obstacle
 from garment.materials import Material
 from garment.model import Patch
@@ -28,10 +29,12 @@ from .embedding import default_resolution, grid_faces, interpolation_matrix, sam
 from .energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
 from .energies.barrier import BarrierEnergy
 from .energies.friction import FrictionEnergy
+from .energies.seam import SeamEnergy
 from .newton import NewtonOptions, minimize
 from .pins import PinGroup, select
 from .potential import IncrementalPotential
 from .rest import PointData, point_data
+from .seams import SeamSpec, excluded_pairs, seam_samples
 from .sinks import Frame, MeshTopology, Sink
 from .stats import StepStats
 
@@ -84,6 +87,8 @@ class Simulator:
         mesh_resolution: tuple[int, int] | None = None,
         contact=None,
         obstacles=(),
+        seams=(),
+        seam_stiffness: float = 1e6,
     ):
         self.dt = float(dt)
         self.mode = mode
@@ -144,6 +149,15 @@ class Simulator:
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
             self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
 
+        # Seams (sim/seams.py): one stiff quadratic energy over all matched samples.
+        self.seams = list(seams)
+        self.seam = None
+        if self.seams:
+            rest = np.concatenate([p.patch.rest.reshape(-1, 2) for p in self.pieces])
+            samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, rest)
+            self.seam = SeamEnergy(samples, seam_stiffness)
+            self.energies.append(self.seam)
+
         # Initial control points: the contact check starts here and pins move relative to them.
         self.C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
         self.obstacles = list(obstacles)
@@ -184,7 +198,14 @@ class Simulator:
             offset += p.W.shape[0]
         ids = np.concatenate([np.full(p.W.shape[0], k) for k, p in enumerate(self.pieces)])
         C0 = self.C0
-        mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact)
+        excluded = set()
+        if self.seams:
+            starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
+            rest = np.concatenate([p.patch.rest.reshape(-1, 2) for p in self.pieces])
+            excluded = excluded_pairs(self.seams, {p.name: p for p in self.pieces},
+                                      {p.name: int(o) for p, o in zip(self.pieces, starts)},
+                                      {p.name: p.topology.rest for p in self.pieces}, self.n_cp, rest)
+        mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact, excluded)
         x0 = mesh.vertices(C0)
         if ipctk.has_intersections(mesh.mesh, x0):
             raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
@@ -210,13 +231,27 @@ class Simulator:
             np.asarray(load.pressure_direction, float) if load.pressure_direction is not None else c.normal
             for c in scene.cloths
         ]
+        materials = [c.material for c in scene.cloths]
+        seams, stiffness = [], []
+        for g in scene.garments:
+            ps = load_garment(g)
+            name = {p.name: f"{g.name}.{p.name}" for p in ps.patches}
+            for p in ps.patches:
+                patches.append(Patch(name[p.name], p.rest, p.world))
+                materials.append(g.material)
+                directions.append(np.array([0.0, 0.0, 1.0]))
+            seams += [SeamSpec(name[s.patch_a], s.uv_a, name[s.patch_b], s.uv_b, s.name) for s in ps.seams]
+            stiffness.append(g.seam_stiffness)
         tm = scene.time
         opts = newton or NewtonOptions()
         opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
+        obstacles = [load_obstacle(o) for o in scene.obstacles]
+        for o in obstacles:
+            o.delay = tm.preroll  # bodies hold their first pose while seams close
         sim = cls(
-            patches, [c.material for c in scene.cloths], groups, load.gravity, load.pressure,
-            directions, tm.dt, tm.mode, opts, scene.output.mesh_resolution,
-            scene.contact, [load_obstacle(o) for o in scene.obstacles],
+            patches, materials, groups, load.gravity, load.pressure,
+            directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,
+            scene.contact, obstacles, seams, max(stiffness, default=1e6),
         )
         for c, piece in zip(scene.cloths, sim.pieces):
             sim.V[piece.slice] = np.asarray(c.velocity, float)

@@ -22,6 +22,7 @@ class ObstacleGeometry:
     faces: np.ndarray
     sequence: BodySequence | None = None
     spin: object | None = None  # garment.scene.Spin
+    delay: float = 0.0  # s: the motion starts this late (pre-roll), holding the first pose
 
     @property
     def animated(self) -> bool:
@@ -29,6 +30,7 @@ class ObstacleGeometry:
 
     def at(self, t: float) -> np.ndarray:
         """(V, 3) vertex positions at time t."""
+        t = t - self.delay
         if self.sequence is not None:
             return self.sequence.at(t)
         if self.spin is not None:

@@ -18,8 +18,9 @@ class ContactMesh:
     (Vc, 3) initial cloth vertices; obstacles: list of garment.io.obstacles.ObstacleGeometry."""
 
     def __init__(self, W: sp.csr_matrix, cloth_faces: np.ndarray, rest: np.ndarray, obstacles=(),
-                 piece_ids: np.ndarray | None = None, self_contact: bool = True):
-        """piece_ids: (Vc,) cloth piece of each vertex, needed when self_contact is off."""
+                 piece_ids: np.ndarray | None = None, self_contact: bool = True, excluded=()):
+        """piece_ids: (Vc,) cloth piece of each vertex, needed when self_contact is off;
+        excluded: cloth vertex pairs (i < j) that never collide (stitched neighbours)."""
         self.W = W.tocsr()
         self.n_cloth = W.shape[0]
         self.obstacles = list(obstacles)
@@ -35,13 +36,21 @@ class ContactMesh:
         edges = ipctk.edges(self.faces)
         V = np.concatenate([rest, self.obstacle_vertices])
         self.mesh = ipctk.CollisionMesh(np.asfortranarray(V), edges, self.faces)
+        filters = []
         if not self_contact:
             # Pieces collide with each other and with obstacles, never with themselves;
             # obstacles share one label so they never collide with each other.
             ids = np.concatenate([piece_ids, np.full(len(self.obstacle_vertices), -1)]).astype(np.int32)
-            self.mesh.can_collide = ipctk.make_vertex_patches_filter(ids)
+            filters.append(ipctk.make_vertex_patches_filter(ids))
         elif self.obstacles:
-            self.mesh.can_collide = ipctk.make_static_obstacle_filter(self.n_cloth)
+            filters.append(ipctk.make_static_obstacle_filter(self.n_cloth))
+        if excluded:
+            filters.append(ipctk.make_sparse_filter({pair: False for pair in excluded}, True))
+        if filters:
+            f = filters[0]
+            for other in filters[1:]:
+                f = f & other
+            self.mesh.can_collide = f
         self.version = 0  # bumped whenever obstacles move, so cached contact data expire
         # dx_cloth = W3 dC: 3x3-block expansion of W, for mapping gradients and Hessians.
         self.W3 = sp.kron(self.W, sp.identity(3), format="csr")

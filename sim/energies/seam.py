@@ -1,0 +1,68 @@
+"""Seams: matched samples of two patch boundary curves held together by stiff springs.
+
+E = k/2 sum_s w_s |S_a(u_s, v_s) - S_b(u'_s, v'_s)|^2, each side a fixed combination of
+control points (S = N C), so E = 1/2 tr(C^T K C) with the constant K = k D^T diag(w) D,
+D = N_a - N_b. Quadratic, so its Hessian is precomputed once and is PSD. w_s is the seam
+length each sample stands for (rest metres), so k is a stiffness per unit seam length
+(N/m^2) and refining the samples does not change the seam. One energy holds every seam.
+
+A penalty rather than welded control points: it works for any pairing of control nets,
+pulls separated panels together during the stitching phase (the gap shrinks as the
+force k w |gap| meets the cloth's resistance), and keeps them closed after.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..assembly import add_scalar_matrix
+from .base import Energy
+
+
+@dataclass
+class SeamSamples:
+    """Matched seam samples: rows of the interpolation matrices of both sides (S x n_cp)
+    and their weights (S,) in metres of rest seam length."""
+
+    Na: sp.csr_matrix
+    Nb: sp.csr_matrix
+    weights: np.ndarray
+
+    def gaps(self, C: np.ndarray) -> np.ndarray:
+        """(S,) distances between matched points, m."""
+        return np.linalg.norm(self.Na @ C - self.Nb @ C, axis=1)
+
+
+class SeamEnergy(Energy):
+    constant_hessian = True
+
+    def __init__(self, samples: SeamSamples, stiffness: float):
+        self.samples = samples
+        D = (samples.Na - samples.Nb).tocsr()
+        self.D = D
+        self.K = (stiffness * (D.T @ sp.diags(samples.weights) @ D)).tocsr()
+        self._pattern = None
+
+    def stencils(self):
+        """Control points of both sides of each sample."""
+        D = self.D
+        counts = np.diff(D.indptr)
+        out = -np.ones((D.shape[0], max(int(counts.max(initial=0)), 1)), np.int64)
+        rows = np.repeat(np.arange(D.shape[0]), counts)
+        out[rows, np.arange(D.indices.size) - D.indptr[rows]] = D.indices
+        return [out]
+
+    def bind(self, pattern):
+        self._pattern = pattern
+
+    def value(self, C):
+        return 0.5 * float(np.sum(C * (self.K @ C)))
+
+    def add_gradient(self, C, out):
+        out += self.K @ C
+
+    def add_hessian(self, C, data, project=True):
+        add_scalar_matrix(self._pattern, self.K, data)

@@ -1,0 +1,92 @@
+"""Seams between pieces: matched parameter samples -> seam energy samples, and the
+contact-mesh vertex pairs next to a seam that must never produce a barrier.
+
+A seam is (piece_a, uv_a (S, 2), piece_b, uv_b (S, 2)): uv_a[s] is sewn to uv_b[s]
+(garment.model.PatchSeam). Once closed, the two cloths meet edge to edge along it, so
+their contact-mesh triangles there touch by construction; the barrier would hold the seam
+open by d_hat. Vertices within `band` contact-mesh spacings of a seam sample are paired
+with those across the seam near the same sample and excluded from contact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .embedding import interpolation_matrix
+from .energies.seam import SeamSamples
+
+
+@dataclass
+class SeamSpec:
+    piece_a: str
+    uv_a: np.ndarray
+    piece_b: str
+    uv_b: np.ndarray
+    name: str = ""
+
+
+def _rows(piece, uv, n_cp):
+    n, m = piece.patch.shape
+    uv = np.asarray(uv, float)
+    return interpolation_matrix(uv[:, 0], uv[:, 1], n, m, piece.offset, n_cp)
+
+
+def _arc_weights(points: np.ndarray) -> np.ndarray:
+    """Length each sample stands for along the polyline through `points` (S, d)."""
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    w = np.zeros(len(points))
+    w[:-1] += 0.5 * seg
+    w[1:] += 0.5 * seg
+    return w
+
+
+def seam_samples(seams: list[SeamSpec], pieces: dict, n_cp: int, rest: np.ndarray) -> SeamSamples:
+    """Stacked samples of every seam; rest: (n_cp, 2) rest control points (weights)."""
+    Na, Nb, w = [], [], []
+    for s in seams:
+        a = _rows(pieces[s.piece_a], s.uv_a, n_cp)
+        b = _rows(pieces[s.piece_b], s.uv_b, n_cp)
+        Na.append(a)
+        Nb.append(b)
+        # Both sides have (nearly) the same rest length; average them.
+        w.append(0.5 * (_arc_weights(a @ rest) + _arc_weights(b @ rest)))
+    return SeamSamples(sp.vstack(Na).tocsr(), sp.vstack(Nb).tocsr(), np.concatenate(w))
+
+
+def excluded_pairs(seams: list[SeamSpec], pieces: dict, vertex_offsets: dict, rest_vertices: dict,
+                   n_cp: int, rest: np.ndarray, band: float = 2.5) -> set[tuple[int, int]]:
+    """Contact-mesh vertex pairs (i < j) across each seam near the same sample.
+
+    rest_vertices[name]: (V, 2) rest positions of a piece's contact-mesh vertices;
+    vertex_offsets[name]: index of its first vertex in the collision mesh.
+    """
+    pairs: set[tuple[int, int]] = set()
+    for s in seams:
+        near = []
+        for name, uv in ((s.piece_a, s.uv_a), (s.piece_b, s.uv_b)):
+            X = rest_vertices[name]
+            spacing = _spacing(pieces[name])
+            pts = _rows(pieces[name], uv, n_cp) @ rest  # sample rest positions
+            d = np.linalg.norm(X[None, :, :] - pts[:, None, :], axis=2)  # (S, V)
+            near.append([vertex_offsets[name] + np.flatnonzero(row < band * spacing) for row in d])
+        S = len(near[0])
+        for k in range(S):
+            # Window of neighbouring samples, so bands overlap where samples are sparse.
+            va = np.unique(np.concatenate(near[0][max(k - 1, 0):k + 2]))
+            vb = near[1][k]
+            for i in va:
+                for j in vb:
+                    if i != j:
+                        pairs.add((min(i, j), max(i, j)))
+    return pairs
+
+
+def _spacing(piece) -> float:
+    """Mean edge length of a piece's contact mesh in the rest state, m."""
+    X = piece.topology.rest
+    f = piece.topology.faces
+    e = np.linalg.norm(X[f[:, 1]] - X[f[:, 0]], axis=1)
+    return float(e.mean())
