@@ -58,30 +58,52 @@ def seam_samples(seams: list[SeamSpec], pieces: dict, n_cp: int, rest: np.ndarra
 
 def excluded_pairs(seams: list[SeamSpec], pieces: dict, vertex_offsets: dict, rest_vertices: dict,
                    n_cp: int, rest: np.ndarray, band: float = 2.5) -> set[tuple[int, int]]:
-    """Contact-mesh vertex pairs (i < j) across each seam near the same sample.
+    """Contact-mesh vertex pairs (i < j) that must never collide: across each seam near the
+    same sample, and among all pieces meeting at a junction (where seams of three or more
+    panels end at one point, vertices of panels without a common seam meet too).
 
     rest_vertices[name]: (V, 2) rest positions of a piece's contact-mesh vertices;
     vertex_offsets[name]: index of its first vertex in the collision mesh.
     """
     pairs: set[tuple[int, int]] = set()
-    for s in seams:
-        near = []
+    ends = []  # (seam index, piece, rest position (S, 2), near-vertex lists) per seam side
+    for k, s in enumerate(seams):
+        sides = []
         for name, uv in ((s.piece_a, s.uv_a), (s.piece_b, s.uv_b)):
             X = rest_vertices[name]
-            spacing = _spacing(pieces[name])
+            radius = band * _spacing(pieces[name])
             pts = _rows(pieces[name], uv, n_cp) @ rest  # sample rest positions
             d = np.linalg.norm(X[None, :, :] - pts[:, None, :], axis=2)  # (S, V)
-            near.append([vertex_offsets[name] + np.flatnonzero(row < band * spacing) for row in d])
-        S = len(near[0])
-        for k in range(S):
+            near = [vertex_offsets[name] + np.flatnonzero(row < radius) for row in d]
+            sides.append(near)
+            ends.append((k, name, pts, near, radius))
+        for j in range(len(sides[0])):
             # Window of neighbouring samples, so bands overlap where samples are sparse.
-            va = np.unique(np.concatenate(near[0][max(k - 1, 0):k + 2]))
-            vb = near[1][k]
-            for i in va:
-                for j in vb:
-                    if i != j:
-                        pairs.add((min(i, j), max(i, j)))
+            va = np.unique(np.concatenate(sides[0][max(j - 1, 0):j + 2]))
+            _add_pairs(pairs, va, sides[1][j])
+    # Junctions: sample ends of different seams on one piece that nearly coincide.
+    for a in range(len(ends)):
+        ka, pa, Pa, na, ra = ends[a]
+        for b in range(a + 1, len(ends)):
+            kb, pb, Pb, nb, rb = ends[b]
+            if ka == kb or pa != pb:
+                continue
+            d = np.linalg.norm(Pa[:, None, :] - Pb[None, :, :], axis=2)
+            for i, j in zip(*np.nonzero(d < max(ra, rb))):
+                # The partners across both seams meet here: exclude them from each other.
+                other_a = ends[a ^ 1][3][i]
+                other_b = ends[b ^ 1][3][j]
+                _add_pairs(pairs, other_a, other_b)
+                _add_pairs(pairs, other_a, nb[j])
+                _add_pairs(pairs, other_b, na[i])
     return pairs
+
+
+def _add_pairs(pairs: set, va, vb) -> None:
+    for i in va:
+        for j in vb:
+            if i != j:
+                pairs.add((min(int(i), int(j)), max(int(i), int(j))))
 
 
 def _spacing(piece) -> float:

@@ -89,6 +89,7 @@ class Simulator:
         obstacles=(),
         seams=(),
         seam_stiffness: float = 1e6,
+        seam_ramp: float = 0.0,
     ):
         self.dt = float(dt)
         self.mode = mode
@@ -157,6 +158,10 @@ class Simulator:
             samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, rest)
             self.seam = SeamEnergy(samples, seam_stiffness)
             self.energies.append(self.seam)
+        # Seams stiffen linearly over `seam_ramp` s, so open panels close gently.
+        self.seam_ramp = float(seam_ramp)
+        if self.seam is not None and self.seam_ramp > 0.0:
+            self.seam.set_scale(min(self.dt / self.seam_ramp, 1.0))
 
         # Initial control points: the contact check starts here and pins move relative to them.
         self.C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
@@ -251,7 +256,7 @@ class Simulator:
         sim = cls(
             patches, materials, groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,
-            scene.contact, obstacles, seams, max(stiffness, default=1e6),
+            scene.contact, obstacles, seams, max(stiffness, default=1e6), tm.preroll,
         )
         for c, piece in zip(scene.cloths, sim.pieces):
             sim.V[piece.slice] = np.asarray(c.velocity, float)
@@ -308,6 +313,9 @@ class Simulator:
         """Advance one time step (or one quasi-static load increment)."""
         start = _time.perf_counter()
         t_next = self.t + self.dt
+        if self.seam is not None and self.seam_ramp > 0.0 and self.seam.scale < 1.0:
+            self.seam.set_scale(min(t_next / self.seam_ramp, 1.0))
+            self.potential.refresh_constant()
         stats = StepStats(step=self.step_count + 1, time=t_next)
         targets = self.pin_targets(t_next)
         # Predictor C + dt V: the inertia target in dynamics, the secant (last increment)

@@ -43,8 +43,16 @@ class SeamEnergy(Energy):
         self.samples = samples
         D = (samples.Na - samples.Nb).tocsr()
         self.D = D
-        self.K = (stiffness * (D.T @ sp.diags(samples.weights) @ D)).tocsr()
+        self.K0 = (stiffness * (D.T @ sp.diags(samples.weights) @ D)).tocsr()
+        self.K = self.K0
+        self.scale = 1.0
         self._pattern = None
+
+    def set_scale(self, scale: float) -> None:
+        """Stiffness = scale x the full stiffness (a stitching ramp); the caller must
+        re-assemble constant Hessians (IncrementalPotential.refresh_constant)."""
+        self.scale = float(scale)
+        self.K = self.K0 * self.scale
 
     def stencils(self):
         """Control points of both sides of each sample."""
