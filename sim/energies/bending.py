@@ -10,14 +10,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly import add_scalar_matrix
 from ..rest import PointData
-from .base import Energy
+from .quadratic import QuadraticEnergy
 
 
-class BendingEnergy(Energy):
-    constant_hessian = True
-
+class BendingEnergy(QuadraticEnergy):
     def __init__(self, points: PointData, stiffness: np.ndarray, n_cp: int):
         """stiffness: (Q,) bending stiffness D (N m) per point."""
         self.points = points
@@ -27,19 +24,6 @@ class BendingEnergy(Energy):
         coef = (points.w * stiffness)[:, None, None] * points.lap[:, :, None] * points.lap[:, None, :]
         ok = (rows >= 0) & (cols >= 0)
         self.K = sp.coo_matrix((coef.ravel()[ok], (rows[ok], cols[ok])), shape=(n_cp, n_cp)).tocsr()
-        self._pattern = None
 
     def stencils(self):
         return [self.points.idx]
-
-    def bind(self, pattern):
-        self._pattern = pattern
-
-    def value(self, C):
-        return 0.5 * float(np.sum(C * (self.K @ C)))
-
-    def add_gradient(self, C, out):
-        out += self.K @ C
-
-    def add_hessian(self, C, data, project=True):
-        add_scalar_matrix(self._pattern, self.K, data)

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly import add_scalar_matrix
-from .base import Energy
+from .quadratic import QuadraticEnergy
 
 
 @dataclass
@@ -36,9 +35,7 @@ class SeamSamples:
         return np.linalg.norm(self.Na @ C - self.Nb @ C, axis=1)
 
 
-class SeamEnergy(Energy):
-    constant_hessian = True
-
+class SeamEnergy(QuadraticEnergy):
     def __init__(self, samples: SeamSamples, stiffness: float):
         self.samples = samples
         D = (samples.Na - samples.Nb).tocsr()
@@ -46,7 +43,6 @@ class SeamEnergy(Energy):
         self.K0 = (stiffness * (D.T @ sp.diags(samples.weights) @ D)).tocsr()
         self.K = self.K0
         self.scale = 1.0
-        self._pattern = None
 
     def set_scale(self, scale: float) -> None:
         """Stiffness = scale x the full stiffness (a stitching ramp); the caller must
@@ -62,15 +58,3 @@ class SeamEnergy(Energy):
         rows = np.repeat(np.arange(D.shape[0]), counts)
         out[rows, np.arange(D.indices.size) - D.indptr[rows]] = D.indices
         return [out]
-
-    def bind(self, pattern):
-        self._pattern = pattern
-
-    def value(self, C):
-        return 0.5 * float(np.sum(C * (self.K @ C)))
-
-    def add_gradient(self, C, out):
-        out += self.K @ C
-
-    def add_hessian(self, C, data, project=True):
-        add_scalar_matrix(self._pattern, self.K, data)
