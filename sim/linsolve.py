@@ -95,3 +95,17 @@ def pcg(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_i
         d = z + (rz_new / rz) * d
         rz = rz_new
     return x, max_iterations, False
+
+
+def neumann(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_terms: int):
+    """Neumann series for A x = b with A = M - N, M^-1 = `precondition`:
+    x = sum_k (M^-1 N)^k M^-1 b, i.e. x <- x + M^-1 (b - A x) from x0 = M^-1 b. Converges
+    when ||M^-1 N|| < 1 (the Gershgorin test). Returns (x, terms, converged)."""
+    x = x0.copy()
+    stop = rtol * np.linalg.norm(b)
+    for k in range(1, max_terms + 1):
+        r = b - apply_A(x)
+        if np.linalg.norm(r) <= stop:
+            return x, k - 1, True
+        x += precondition(r)
+    return x, max_terms, bool(np.linalg.norm(b - apply_A(x)) <= stop)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linsolve import pcg, solve_once
+from .linsolve import neumann, pcg, solve_once
 from .potential import IncrementalPotential
 from .stats import StepStats
 
@@ -29,7 +29,8 @@ class NewtonOptions:
     pcg_rtol: float = 1e-8  # CG on the exact Hessian when contact couplings leave the pattern
     pcg_max_iterations: int = 30  # an early stop still gives a descent direction
     # Couplings outside the pattern: "auto" (partial factorization: CG or merge by the
-    # Gershgorin bound), "merge" (always), "diagonal" (keep them on the diagonal only).
+    # Gershgorin bound), "neumann" (the same with a Neumann series instead of CG),
+    # "merge" (always), "diagonal" (keep them on the diagonal only).
     off_pattern: str = "auto"
 
 
@@ -151,7 +152,8 @@ def _direction(ip, C, g, drive, opts, stats, allow_fail):
     t1 = time.perf_counter()
     p = -ip.solver.solve(rhs)
     if exact:
-        p, k, ok = pcg(ip.apply_hessian, -rhs, ip.solver.solve, p, opts.pcg_rtol, opts.pcg_max_iterations)
+        iterate = neumann if opts.off_pattern == "neumann" else pcg
+        p, k, ok = iterate(ip.apply_hessian, -rhs, ip.solver.solve, p, opts.pcg_rtol, opts.pcg_max_iterations)
         stats.extra["pcg_solves"] = stats.extra.get("pcg_solves", 0) + 1
         stats.extra["pcg_iterations"] = stats.extra.get("pcg_iterations", 0) + k
         stats.extra["pcg_failures"] = stats.extra.get("pcg_failures", 0) + (not ok)

@@ -243,3 +243,17 @@ def test_pcg_solves_spd_systems_and_every_iterate_descends():
     # Stopped early, the iterate still lowers the quadratic model (a descent direction).
     x3, _, ok3 = pcg(lambda v: A @ v, b, lambda r: jacobi * r, np.zeros(40), 1e-14, 3)
     assert not ok3 and 0.5 * x3 @ A @ x3 - b @ x3 < 0.0
+
+
+def test_neumann_series_converges_when_the_splitting_contracts():
+    from sim.linsolve import neumann
+
+    rng = np.random.default_rng(4)
+    M = np.diag(rng.uniform(2.0, 3.0, 30))
+    N = 0.05 * rng.standard_normal((30, 30))
+    N = N + N.T  # ||M^-1 N|| well below 1
+    A = M - N
+    b = rng.standard_normal(30)
+    inv = 1.0 / np.diag(M)
+    x, k, ok = neumann(lambda v: A @ v, b, lambda r: inv * r, inv * b, 1e-12, 200)
+    assert ok and k < 60 and np.linalg.norm(A @ x - b) <= 1e-12 * np.linalg.norm(b)

@@ -6,6 +6,7 @@ the pattern), per solver mode:
 - diagonal: moved onto the diagonal only (one factorization, inexact Hessian);
 - auto: CG preconditioned by that factor when the Gershgorin bound on ||D^-1 B|| < 1,
   otherwise merged and factored once (the paper's scheme);
+- neumann: the same with the Neumann series instead of CG;
 - merge: always merged and factored once (exact, a new symbolic analysis each time).
 
 Reported per mode: Newton iterations per step, seconds per iteration and per step, the
@@ -24,7 +25,7 @@ from sim.simulator import Simulator
 
 from .common import scene
 
-MODES = ("diagonal", "auto", "merge")
+MODES = ("diagonal", "auto", "neumann", "merge")
 COLUMNS = ("resolution", "mode", "dofs", "steps", "newton_iterations_per_step", "seconds_per_iteration",
            "seconds_per_step", "cg_rate", "merge_rate", "cg_iterations_per_solve", "momentum_drift",
            "speedup_vs_merge")
@@ -52,7 +53,7 @@ def _run_mode(n: int, mode: str, steps: int, progress=None) -> dict:
         "resolution": n, "mode": mode, "dofs": sim.n_dofs, "steps": steps,
         "newton_iterations_per_step": iters / steps, "seconds_per_iteration": total / max(iters, 1),
         "seconds_per_step": total / steps,
-        "cg_rate": cg / moved if mode != "diagonal" else 0.0,
+        "cg_rate": cg / moved if mode != "diagonal" else 0.0,  # CG or Neumann solves
         "merge_rate": merged / moved if mode != "diagonal" else 0.0,
         "cg_iterations_per_solve": sum(s.extra.get("pcg_iterations", 0) for s in stats) / max(cg, 1),
         "momentum_drift": drift,
