@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-from . import cloth, plate, wrinkle
+from . import cloth, compare, contact_hessian, partial_factorization, plate, wrinkle
 from . import conform as conform_bench
 
 
@@ -39,5 +39,11 @@ BENCHMARKS = {
                   cloth.runner("shear"), (75, 100, 125), cloth.COLUMNS),
         Benchmark("conform", "quadrature error on conformed distorted patches (aspect, skew, bend sweep)",
                   conform_bench.run, (10, 20), conform_bench.COLUMNS, reports_steps=False),
+        Benchmark("contact-hessian", "dense-contact Hessian: ipctk evaluation and mapping to control points",
+                  contact_hessian.run, (30, 50, 75), contact_hessian.COLUMNS, reports_steps=False),
+        Benchmark("partial-factorization", "off-pattern contact couplings: diagonal vs CG/merge vs merge (two plates)",
+                  partial_factorization.run, (10, 20, 30), partial_factorization.COLUMNS),
+        Benchmark("compare", "B-spline vs linear FEM (pairs, plate, locking, ablation; --case, --out)",
+                  compare.run, (), compare.COLUMNS),
     )
 }

@@ -15,6 +15,10 @@ def run(args) -> int:
     kwargs = {"steps": args.steps}
     if args.quadrature:
         kwargs["quadrature"] = args.quadrature
+    if args.case or args.out:
+        if args.name != "compare":
+            raise SystemExit("--case and --out apply to `garment bench compare` only")
+        kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
     with progress(args.quiet or args.json) as bar:
         task = bar.add_task(args.name, total=None, status="")
 
@@ -27,6 +31,11 @@ def run(args) -> int:
         cases = bench.run(resolutions, **kwargs)
     if args.json:
         print(json.dumps({"benchmark": args.name, "cases": cases}, indent=1))
+    elif args.name == "compare":
+        from garment.bench.compare import tables
+
+        for case, columns, rows in tables(cases):
+            print_table(f"garment bench compare --case {case}", columns, rows)
     else:
         print_table(f"garment bench {args.name}: {bench.description}", bench.columns, cases)
     return 0
@@ -42,5 +51,8 @@ def register(sub) -> None:
     b.add_argument("--steps", type=int, help="time steps per case")
     b.add_argument("--quadrature", choices=QUADRATURES)
     b.add_argument("--json", action="store_true", help="print one JSON object")
+    b.add_argument("--case", help="compare only: comma-separated cases (hanging, drape, shear, sphere, "
+                                  "plate, locking, ablation)")
+    b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(func=run)

@@ -20,6 +20,7 @@ from garment.materials import Material
 from ..contact.drive import BodyDrive
 from ..contact.stiffness import AdaptiveStiffness
 from ..energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
+from ..energies.friction import FrictionEnergy
 from ..newton import NewtonOptions
 from ..pins import PinGroup
 from ..potential import IncrementalPotential
@@ -81,6 +82,8 @@ def select_vertices(mesh: TriangleMesh, corners=(), sides=(), box=None, depth: i
 
 def cloth_mesh(size: tuple[float, float], resolution, layout: str = "grid") -> TriangleMesh:
     """resolution: vertices per side (int: along the width, the height in proportion)."""
+    if layout not in LAYOUTS:
+        raise ValueError(f"unknown mesh layout {layout!r}; choose from {', '.join(LAYOUTS)}")
     if layout == "equilateral":
         n = resolution if np.isscalar(resolution) else resolution[0]
         return equilateral_mesh(size, int(n))
@@ -161,17 +164,25 @@ class LinearSimulator(Simulator):
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
             self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
 
+        # No seams between linear cloths (Simulator's seam attributes, switched off).
+        self.seams, self.seam, self.seam_ramp = [], None, 0.0
+
         self.C0 = np.concatenate([np.asarray(w, float) for w in worlds])
         self.obstacles = list(obstacles)
-        # Contact exactly as Simulator.__init__ sets it up (keep the two in step).
+        # Contact exactly as Simulator.__init__ sets it up (keep the two in step;
+        # tests/test_linear_fem.py checks that both carry the same attributes).
         self.barrier = None
         self.drive = None
         self.stiffness = None
+        self.friction = None
         if contact is not None and contact.enabled:
             self.barrier = self._contact_energy(contact)
             self.energies.append(self.barrier)
             self.drive = BodyDrive(self.barrier.contact, self.obstacles)
-            if getattr(contact, "adaptive_kappa", False):
+            if contact.mu > 0.0:
+                self.friction = FrictionEnergy(self.barrier, contact.mu, contact.eps_v, self.dt)
+                self.energies.append(self.friction)
+            if contact.adaptive_kappa:
                 density = float(np.mean([m.areal_density for m in materials]))
                 self.stiffness = AdaptiveStiffness(self.barrier, density, float(np.linalg.norm(gravity)), self.dt)
 
