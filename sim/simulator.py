@@ -165,6 +165,12 @@ class Simulator:
 
         # Initial control points: the contact check starts here and pins move relative to them.
         self.C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
+        self._finish(contact, obstacles, materials, gravity)
+
+    # ------------------------------------------------------------------ construction
+    def _finish(self, contact, obstacles, materials, gravity) -> None:
+        """Contact, pins, the incremental potential and the initial state, once the
+        energies and C0 exist (shared with sim.linear.LinearSimulator)."""
         self.obstacles = list(obstacles)
         self.barrier = None
         self.drive = None
@@ -193,7 +199,6 @@ class Simulator:
         self.t = 0.0
         self.step_count = 0
 
-    # ------------------------------------------------------------------ construction
     def _contact_energy(self, contact) -> BarrierEnergy:
         """IPC barrier on the pieces' embedded meshes and the obstacles."""
         W = sp.vstack([p.W for p in self.pieces]).tocsr()

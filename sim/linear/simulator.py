@@ -17,13 +17,9 @@ import scipy.sparse as sp
 
 from garment.materials import Material
 
-from ..contact.drive import BodyDrive
-from ..contact.stiffness import AdaptiveStiffness
 from ..energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
-from ..energies.friction import FrictionEnergy
 from ..newton import NewtonOptions
 from ..pins import PinGroup
-from ..potential import IncrementalPotential
 from ..rest import PointData
 from ..simulator import Simulator
 from ..sinks import MeshTopology
@@ -168,34 +164,7 @@ class LinearSimulator(Simulator):
         self.seams, self.seam, self.seam_ramp = [], None, 0.0
 
         self.C0 = np.concatenate([np.asarray(w, float) for w in worlds])
-        self.obstacles = list(obstacles)
-        # Contact exactly as Simulator.__init__ sets it up (keep the two in step;
-        # tests/test_linear_fem.py checks that both carry the same attributes).
-        self.barrier = None
-        self.drive = None
-        self.stiffness = None
-        self.friction = None
-        if contact is not None and contact.enabled:
-            self.barrier = self._contact_energy(contact)
-            self.energies.append(self.barrier)
-            self.drive = BodyDrive(self.barrier.contact, self.obstacles)
-            if contact.mu > 0.0:
-                self.friction = FrictionEnergy(self.barrier, contact.mu, contact.eps_v, self.dt)
-                self.energies.append(self.friction)
-            if contact.adaptive_kappa:
-                density = float(np.mean([m.areal_density for m in materials]))
-                self.stiffness = AdaptiveStiffness(self.barrier, density, float(np.linalg.norm(gravity)), self.dt)
-
-        self.pinned = np.zeros(self.n_cp, bool)
-        for group in self.pins:
-            self.pinned[group.indices] = True
-        self.potential = IncrementalPotential(self.energies, ~self.pinned)
-        self.potential.drive = self.drive
-
-        self.C = self.C0.copy()
-        self.V = np.zeros_like(self.C)
-        self.t = 0.0
-        self.step_count = 0
+        self._finish(contact, obstacles, materials, gravity)
 
     @classmethod
     def from_scene(cls, scene, resolution=None, layout: str = "grid",
