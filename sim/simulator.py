@@ -26,7 +26,7 @@ from .contact.drive import BodyDrive
 from .contact.mesh import ContactMesh
 from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
-from .energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
+from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
 from .energies.barrier import BarrierEnergy
 from .energies.friction import FrictionEnergy
 from .energies.seam import SeamEnergy
@@ -37,16 +37,6 @@ from .rest import PointData, point_data
 from .seams import SeamSpec, excluded_pairs, seam_samples
 from .sinks import Frame, MeshTopology, Sink
 from .stats import StepStats
-
-_MEMBRANES = {"fbw": MembraneFBW, "stvk": MembraneStVK}
-
-
-def _membrane_params(material: Material) -> tuple[float, float]:
-    if material.membrane == "fbw":
-        return material.h * material.k_st, material.h * material.k_sh
-    mu, lam = material.lame
-    return material.h * mu, material.h * lam
-
 
 @dataclass
 class Piece:
@@ -116,7 +106,7 @@ class Simulator:
             X = piece.patch.rest
             pm = point_data(X, quadrature.membrane_rule(mat.quadrature, n, m), piece.offset)
             if mat.membrane != "none":
-                membranes.setdefault(mat.membrane, []).append((pm, _membrane_params(mat)))
+                membranes.setdefault(mat.membrane, []).append((pm, membrane_params(mat)))
             pb = point_data(X, quadrature.bending_rule(mat.quadrature, n, m), piece.offset, second_order=True)
             bend_parts.append(pb)
             bend_D.append(np.full(pb.n_points, mat.bending_stiffness))
@@ -148,7 +138,7 @@ class Simulator:
         for model, parts in membranes.items():
             pts = PointData.concatenate([p for p, _ in parts])
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
-            self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
+            self.energies.append(MEMBRANES[model](pts, params, self.n_cp))
 
         # Seams (sim/seams.py): one stiff quadratic energy over all matched samples.
         self.seams = list(seams)

@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 from garment.materials import Material
 
-from ..energies import BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW, MembraneStVK
+from ..energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
 from ..newton import NewtonOptions
 from ..pins import PinGroup
 from ..rest import PointData
@@ -27,16 +27,7 @@ from .bending_bergou import hinge_points
 from .membrane import lumped_areas, triangle_points
 from .mesh import TriangleMesh, equilateral_mesh, grid_mesh
 
-_MEMBRANES = {"fbw": MembraneFBW, "stvk": MembraneStVK}
 LAYOUTS = ("grid", "equilateral")
-
-
-def membrane_params(material: Material) -> tuple[float, float]:
-    """(h k_st, h k_sh) for FBW, (h mu, h lambda) for StVK, as the B-spline simulator."""
-    if material.membrane == "fbw":
-        return material.h * material.k_st, material.h * material.k_sh
-    mu, lam = material.lame
-    return material.h * mu, material.h * lam
 
 
 @dataclass
@@ -158,7 +149,7 @@ class LinearSimulator(Simulator):
         for model, parts in membranes.items():
             pts = PointData.concatenate([p for p, _ in parts])
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
-            self.energies.append(_MEMBRANES[model](pts, params, self.n_cp))
+            self.energies.append(MEMBRANES[model](pts, params, self.n_cp))
 
         # No seams between linear cloths (Simulator's seam attributes, switched off).
         self.seams, self.seam, self.seam_ramp = [], None, 0.0
