@@ -85,7 +85,9 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
             trial[free] = C[free] + step
             t_ccd = time.perf_counter()
             alpha = ip.max_step(C, trial, drive.target if moving else None)
-            stats.extra["t_ccd"] = stats.extra.get("t_ccd", 0.0) + time.perf_counter() - t_ccd
+            t_ccd = time.perf_counter() - t_ccd
+            stats.t_ccd += t_ccd
+            t3 += t_ccd  # the line-search time below excludes CCD
         else:
             alpha = 1.0
         if moving:

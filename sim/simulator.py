@@ -327,7 +327,9 @@ class Simulator:
                 self.friction.lag(self.C)
             self.drive.set_time(t_next)
             C_start = np.where(self.pinned[:, None], targets, self.C)
+            t_ccd = _time.perf_counter()
             alpha = self.potential.max_step(C_start, x0, self.drive.target if self.drive.pending else None)
+            stats.t_ccd += _time.perf_counter() - t_ccd
             x0 = C_start + alpha * (x0 - C_start)
             self.drive.advance(alpha)
             if self.stiffness is not None:

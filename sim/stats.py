@@ -23,7 +23,8 @@ class StepStats:
     t_assembly: float = 0.0
     t_factorization: float = 0.0
     t_solve: float = 0.0
-    t_line_search: float = 0.0
+    t_line_search: float = 0.0  # energy evaluations of the line search (CCD apart)
+    t_ccd: float = 0.0  # continuous collision detection (predictor and line-search starts)
     t_total: float = 0.0
     extra: dict = field(default_factory=dict)
 
@@ -35,5 +36,5 @@ class StepStats:
             f"step {self.step:5d}  t={self.time:7.3f}s  newton {self.newton_iterations:3d}  "
             f"|dC|/dt={self.residual:8.2e}  {self.t_total * 1e3:7.1f} ms "
             f"(asm {self.t_assembly * 1e3:.0f} / fact {self.t_factorization * 1e3:.0f} / "
-            f"solve {self.t_solve * 1e3:.0f} / ls {self.t_line_search * 1e3:.0f})"
+            f"solve {self.t_solve * 1e3:.0f} / ccd {self.t_ccd * 1e3:.0f} / ls {self.t_line_search * 1e3:.0f})"
         )

@@ -59,8 +59,8 @@ def test_bodies_logged_once_while_static(tmp_path):
 def test_extra_statistics_become_time_series(tmp_path):
     steps = [
         StepStats(step=1, time=0.01, newton_iterations=3,
-                  extra={"contact_count": 12.0, "min_distance": 1e-4, "t_ccd": 0.02, "flag": True}),
-        StepStats(step=2, time=0.02, newton_iterations=4, extra={"contact_count": 15, "t_ccd": 0.03}),
+                  t_ccd=0.02, extra={"contact_count": 12.0, "min_distance": 1e-4, "flag": True}),
+        StepStats(step=2, time=0.02, newton_iterations=4, t_ccd=0.03, extra={"contact_count": 15}),
     ]
     series = step_scalars(steps)
     assert "stats/flag" not in series  # a bool is not a time series

@@ -54,6 +54,7 @@ STEP_SCALARS: dict[str, Callable[[StepStats], float]] = {
     "stats/time/factorization": lambda s: s.t_factorization,
     "stats/time/solve": lambda s: s.t_solve,
     "stats/time/line_search": lambda s: s.t_line_search,
+    "stats/time/ccd": lambda s: s.t_ccd,
     "stats/time/step": lambda s: s.t_total,
 }
 

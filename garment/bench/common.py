@@ -34,7 +34,7 @@ def step_summary(stats) -> dict:
         "newton_iterations_per_step": iters / n,
         "seconds_per_iteration": total / max(iters, 1),
     }
-    for key in ("assembly", "factorization", "solve", "line_search"):
+    for key in ("assembly", "factorization", "solve", "ccd", "line_search"):
         out[f"{key}_fraction"] = sum(getattr(s, f"t_{key}") for s in stats) / max(total, 1e-30)
     out["converged_fraction"] = float(np.mean([s.converged for s in stats])) if stats else 0.0
     return out

@@ -201,7 +201,7 @@ def step_line(st) -> str:
     """Compact live statistics of one step for the progress bar."""
     line = (f"newton {st.newton_iterations:3d}  |dC|/dt {st.residual:.1e}  {st.t_total * 1e3:6.0f} ms "
             f"(asm {st.t_assembly * 1e3:.0f} fact {st.t_factorization * 1e3:.0f} "
-            f"solve {st.t_solve * 1e3:.0f} ls {st.t_line_search * 1e3:.0f})")
+            f"solve {st.t_solve * 1e3:.0f} ccd {st.t_ccd * 1e3:.0f} ls {st.t_line_search * 1e3:.0f})")
     if "contact_count" in st.extra:
         line += f"  contacts {st.extra['contact_count']:.0f}"
     if "min_distance" in st.extra:
@@ -258,8 +258,8 @@ def print_run_summary(stats, outputs) -> None:
     err.print(
         f"{s['steps']} steps, {s['seconds_per_step']:.3f} s/step, {s['newton_iterations_per_step']:.1f} "
         f"Newton iterations/step; time in assembly {s['assembly_fraction']:.0%}, factorization "
-        f"{s['factorization_fraction']:.0%}, solve {s['solve_fraction']:.0%}, line search "
-        f"{s['line_search_fraction']:.0%}"
+        f"{s['factorization_fraction']:.0%}, solve {s['solve_fraction']:.0%}, CCD "
+        f"{s['ccd_fraction']:.0%}, line search {s['line_search_fraction']:.0%}"
         + (f"; [yellow]{unconverged} steps hit the iteration cap" if unconverged else "")
     )
     for path in outputs:
