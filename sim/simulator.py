@@ -335,6 +335,8 @@ class Simulator:
             if self.stiffness is not None:
                 stats.extra["kappa"] = self.stiffness.update(self.potential, x0)
         C_new = minimize(self.potential, x0, self.newton, stats)
+        if self.seam is not None:
+            stats.extra["seam_gap_max"] = float(self.seam.samples.gaps(C_new).max(initial=0.0))
         if self.barrier is not None:
             stats.extra["contact_count"] = float(self.barrier.n_collisions)
             stats.extra["min_distance"] = self.barrier.min_distance(C_new)

@@ -45,4 +45,5 @@ def test_open_seam_closes_and_stays_closed_without_barriers():
     # Closed to well under 1 mm, and the touching seam edges make no contact at all.
     assert sim.seam.samples.gaps(sim.C).max() < 1e-4
     assert st.extra["contact_count"] == 0
+    assert st.extra["seam_gap_max"] == sim.seam.samples.gaps(sim.C).max()  # reported per step
     assert st.converged

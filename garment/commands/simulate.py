@@ -206,6 +206,8 @@ def step_line(st) -> str:
         line += f"  contacts {st.extra['contact_count']:.0f}"
     if "min_distance" in st.extra:
         line += f"  dmin {st.extra['min_distance']:.1e} m"
+    if "seam_gap_max" in st.extra:
+        line += f"  seam gap {st.extra['seam_gap_max'] * 1e3:.2f} mm"
     return line
 
 
