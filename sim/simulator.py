@@ -128,17 +128,7 @@ class Simulator:
                 d = pressure_directions[k] if pressure_directions is not None else np.array([0.0, 0.0, 1.0])
                 forces[piece.slice] += pressure * self.areas[piece.slice, None] * np.asarray(d, float)[None, :]
 
-        self.energies = []
-        self.inertia = None
-        if mode == "dynamic":
-            self.inertia = InertiaEnergy(self.mass, self.dt)
-            self.energies.append(self.inertia)
-        self.energies.append(ExternalForceEnergy(forces))
-        self.energies.append(BendingEnergy(PointData.concatenate(bend_parts), np.concatenate(bend_D), self.n_cp))
-        for model, parts in membranes.items():
-            pts = PointData.concatenate([p for p, _ in parts])
-            params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
-            self.energies.append(MEMBRANES[model](pts, params, self.n_cp))
+        self._elastic_energies(mode, forces, bend_parts, bend_D, membranes)
 
         # Seams (sim/seams.py): one stiff quadratic energy over all matched samples.
         self.seams = list(seams)
@@ -158,6 +148,21 @@ class Simulator:
         self._finish(contact, obstacles, materials, gravity)
 
     # ------------------------------------------------------------------ construction
+    def _elastic_energies(self, mode, forces, bend_parts, bend_D, membranes) -> None:
+        """Inertia (dynamic mode), loads, bending and membranes from per-point data
+        (shared with sim.linear.LinearSimulator, whose points are triangles and hinges)."""
+        self.energies = []
+        self.inertia = None
+        if mode == "dynamic":
+            self.inertia = InertiaEnergy(self.mass, self.dt)
+            self.energies.append(self.inertia)
+        self.energies.append(ExternalForceEnergy(forces))
+        self.energies.append(BendingEnergy(PointData.concatenate(bend_parts), np.concatenate(bend_D), self.n_cp))
+        for model, parts in membranes.items():
+            pts = PointData.concatenate([p for p, _ in parts])
+            params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
+            self.energies.append(MEMBRANES[model](pts, params, self.n_cp))
+
     def _finish(self, contact, obstacles, materials, gravity) -> None:
         """Contact, pins, the incremental potential and the initial state, once the
         energies and C0 exist (shared with sim.linear.LinearSimulator)."""

@@ -17,10 +17,9 @@ import scipy.sparse as sp
 
 from garment.materials import Material
 
-from ..energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
+from ..energies import membrane_params
 from ..newton import NewtonOptions
 from ..pins import PinGroup
-from ..rest import PointData
 from ..simulator import Simulator
 from ..sinks import MeshTopology
 from .bending_bergou import hinge_points
@@ -139,17 +138,7 @@ class LinearSimulator(Simulator):
             forces[sl] += pressure * self.areas[sl, None] * np.asarray(d, float)[None, :]
         forces += self.mass[:, None] * np.asarray(gravity, float)[None, :]
 
-        self.energies = []
-        self.inertia = None
-        if mode == "dynamic":
-            self.inertia = InertiaEnergy(self.mass, self.dt)
-            self.energies.append(self.inertia)
-        self.energies.append(ExternalForceEnergy(forces))
-        self.energies.append(BendingEnergy(PointData.concatenate(bend_parts), np.concatenate(bend_D), self.n_cp))
-        for model, parts in membranes.items():
-            pts = PointData.concatenate([p for p, _ in parts])
-            params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
-            self.energies.append(MEMBRANES[model](pts, params, self.n_cp))
+        self._elastic_energies(mode, forces, bend_parts, bend_D, membranes)
 
         # No seams between linear cloths (Simulator's seam attributes, switched off).
         self.seams, self.seam, self.seam_ramp = [], None, 0.0
