@@ -163,55 +163,58 @@ def _greedy_colors(gsup, n_cp):
     return color
 
 
+@njit(cache=True, inline="always")
+def _row_cursors(indptr, o):
+    """Start and end of the three scalar rows (or columns) of vertex o."""
+    p = np.empty(3, np.int64)
+    e = np.empty(3, np.int64)
+    for k in range(3):
+        p[k] = indptr[3 * o + k]
+        e[k] = indptr[3 * o + k + 1]
+    return p, e
+
+
+@njit(cache=True, inline="always")
+def _next_vertex(p, e, indices, limit):
+    """Smallest cloth vertex still ahead of the three cursors, or -1 when done."""
+    v = -1
+    for k in range(3):
+        if p[k] < e[k] and indices[p[k]] < limit:
+            w = indices[p[k]] // 3
+            if v < 0 or w < v:
+                v = w
+    return v
+
+
 @njit(parallel=True, cache=True)
 def _vertex_blocks(indptr, indices, vals, n_cloth, outer_is_row):
     """3x3 vertex blocks of a scalar CSR/CSC matrix (sorted indices), cloth part only.
 
     Returns ptr (Vc+1,), inner (nb,) vertex, blocks (nb, 3, 3) stored as H_uv (rows of u,
-    columns of v) where the outer vertex is u if outer_is_row else v.
+    columns of v) where the outer vertex is u if outer_is_row else v. Two passes: count
+    the blocks of each outer vertex, then fill them.
     """
     limit = 3 * n_cloth
     count = np.zeros(n_cloth + 1, np.int64)
     for o in prange(n_cloth):
-        p = np.empty(3, np.int64)
-        e = np.empty(3, np.int64)
-        for k in range(3):
-            p[k] = indptr[3 * o + k]
-            e[k] = indptr[3 * o + k + 1]
+        p, e = _row_cursors(indptr, o)
         n = 0
-        while True:
-            v = -1
-            for k in range(3):
-                if p[k] < e[k] and indices[p[k]] < limit:
-                    w = indices[p[k]] // 3
-                    if v < 0 or w < v:
-                        v = w
-            if v < 0:
-                break
+        v = _next_vertex(p, e, indices, limit)
+        while v >= 0:
             for k in range(3):
                 while p[k] < e[k] and indices[p[k]] // 3 == v:
                     p[k] += 1
             n += 1
+            v = _next_vertex(p, e, indices, limit)
         count[o + 1] = n
     ptr = np.cumsum(count)
     inner = np.empty(ptr[-1], np.int64)
     blocks = np.zeros((ptr[-1], 3, 3))
     for o in prange(n_cloth):
-        p = np.empty(3, np.int64)
-        e = np.empty(3, np.int64)
-        for k in range(3):
-            p[k] = indptr[3 * o + k]
-            e[k] = indptr[3 * o + k + 1]
+        p, e = _row_cursors(indptr, o)
         b = ptr[o]
-        while True:
-            v = -1
-            for k in range(3):
-                if p[k] < e[k] and indices[p[k]] < limit:
-                    w = indices[p[k]] // 3
-                    if v < 0 or w < v:
-                        v = w
-            if v < 0:
-                break
+        v = _next_vertex(p, e, indices, limit)
+        while v >= 0:
             inner[b] = v
             for k in range(3):
                 while p[k] < e[k] and indices[p[k]] // 3 == v:
@@ -222,6 +225,7 @@ def _vertex_blocks(indptr, indices, vals, n_cloth, outer_is_row):
                         blocks[b, j, k] = vals[p[k]]
                     p[k] += 1
             b += 1
+            v = _next_vertex(p, e, indices, limit)
     return ptr, inner, blocks
 
 
