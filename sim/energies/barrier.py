@@ -11,16 +11,13 @@ from __future__ import annotations
 
 import ipctk
 import numpy as np
-import scipy.sparse as sp
 
 from ..contact.hessian_map import ContactHessianMap
 from ..contact.mesh import ContactMesh
-from .base import Energy
+from .contact import ContactEnergy
 
 
-class BarrierEnergy(Energy):
-    variable_pattern = True
-    moved_entries = 0  # off-pattern couplings moved to the diagonal, last assembly
+class BarrierEnergy(ContactEnergy):
 
     def __init__(self, contact: ContactMesh, dhat: float, kappa: float,
                  ccd_tolerance: float = 1e-6, ccd_max_iterations: int = 1000):
@@ -41,7 +38,6 @@ class BarrierEnergy(Energy):
         self._C = None
         self._version = -1
         self._x = None
-        self._H_cb = None  # cloth-rows x obstacle-columns block of the last Hessian
 
     def _update(self, C):
         """Collision-mesh vertices at C, with the collision set rebuilt when C or the
@@ -88,50 +84,14 @@ class BarrierEnergy(Energy):
         g = self.contact.cloth_part(self.potential.gradient(self.collisions, self.contact.mesh, x))
         out += self.kappa * (self.contact.W3.T @ g).reshape(-1, 3)
 
-    def _vertex_hessian(self, C, project=True):
-        """kappa x ipctk's (3V, 3V) Hessian on the collision-mesh vertices, or None."""
+    def _ipctk_hessian(self, C, method):
         x = self._update(C)
         if len(self.collisions) == 0:
-            self._H_cb = None
             return None
-        method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
-        H = self.kappa * self.potential.hessian(self.collisions, self.contact.mesh, x, method)
-        n = 3 * self.contact.n_cloth
-        self._H_cb = H.tocsr()[:n, n:]
-        return H
+        return self.kappa * self.potential.hessian(self.collisions, self.contact.mesh, x, method)
 
-    def hessian_matrix(self, C, project=True) -> sp.csr_matrix | None:
-        """H_C = W3^T H_x W3 (3 n_cp square) or None without collisions (tests, tools)."""
-        H = self._vertex_hessian(C, project)
-        if H is None:
-            return None
-        n = 3 * self.contact.n_cloth
-        W3 = self.contact.W3
-        return (W3.T @ H.tocsr()[:n, :n] @ W3).tocsr()
-
-    def add_hessian(self, C, data, project=True):
-        """Map the vertex Hessian through W into the pattern in parallel (paper Alg. 1);
-        couplings outside the pattern (distant self-contact) move onto the diagonal."""
-        H = self._vertex_hessian(C, project)
-        self.moved_entries = 0 if H is None else self.hmap.add(H, data)
-        self.off_pattern, self.shift = (self.hmap.off_pattern, self.hmap.shift) if self.moved_entries else (None, None)
-
-    def body_gradient(self, C) -> np.ndarray:
-        """(Vo, 3) barrier gradient on the obstacle vertices."""
-        x = self._update(C)
-        if len(self.collisions) == 0:
-            return np.zeros((self.contact.n_obstacle, 3))
-        return self.kappa * self.contact.obstacle_part(self.potential.gradient(self.collisions, self.contact.mesh, x))
-
-    def coupling(self, C, dB) -> np.ndarray:
-        """(n_cp, 3) W^T H_cb dB: the first-order change of the cloth gradient when the
-        obstacles move by dB (Vo, 3), from the Hessian assembled last at this state."""
+    def _prepare(self, C):
         self._update(C)
-        if self._H_cb is None:
-            self._vertex_hessian(C)
-        if self._H_cb is None:
-            return np.zeros((self.contact.W.shape[1], 3))
-        return (self.contact.W3.T @ (self._H_cb @ dB.ravel())).reshape(-1, 3)
 
     def max_step(self, C0, C1, B1=None) -> float:
         """Largest alpha in [0, 1] such that C0 -> C0 + alpha (C1 - C0) is collision free,

@@ -15,13 +15,10 @@ import ipctk
 import numpy as np
 
 from .barrier import BarrierEnergy
-from .base import Energy
+from .contact import ContactEnergy
 
 
-class FrictionEnergy(Energy):
-    variable_pattern = True
-    moved_entries = 0
-
+class FrictionEnergy(ContactEnergy):
     def __init__(self, barrier: BarrierEnergy, mu: float, eps_v: float, dt: float):
         self.barrier = barrier
         self.contact = barrier.contact
@@ -30,13 +27,14 @@ class FrictionEnergy(Energy):
         self.potential = ipctk.FrictionPotential(float(eps_v))
         self.tangential = ipctk.TangentialCollisions()
         self.x_n = None
-        self._H_cb = None
 
     def stencils(self):
         return self.barrier.stencils()
 
-    def bind(self, pattern):
-        self._pattern = pattern
+    @property
+    def hmap(self):
+        """The barrier's Hessian map: same contact mesh, same pattern."""
+        return self.barrier.hmap
 
     def lag(self, C: np.ndarray) -> None:
         """Re-linearise at the start of a step: contacts, normal forces and bases at C."""
@@ -63,32 +61,7 @@ class FrictionEnergy(Energy):
         g = self.contact.cloth_part(self.potential.gradient(self.tangential, self.contact.mesh, self._v(C)))
         out += (self.contact.W3.T @ g).reshape(-1, 3)
 
-    def _vertex_hessian(self, C, project=True):
-        method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
-        H = self.potential.hessian(self.tangential, self.contact.mesh, self._v(C), method) / self.dt
-        n = 3 * self.contact.n_cloth
-        self._H_cb = H.tocsr()[:n, n:]
-        return H
-
-    def hessian_matrix(self, C, project=True):
-        """W3^T H W3 on all control-point DOFs, or None when inactive (tests, tools)."""
+    def _ipctk_hessian(self, C, method):
         if not self.active:
             return None
-        n = 3 * self.contact.n_cloth
-        W3 = self.contact.W3
-        return (W3.T @ self._vertex_hessian(C, project).tocsr()[:n, :n] @ W3).tocsr()
-
-    def add_hessian(self, C, data, project=True):
-        self._H_cb = None
-        self.moved_entries = 0
-        if self.active:
-            self.moved_entries = self.barrier.hmap.add(self._vertex_hessian(C, project), data)
-        hmap = self.barrier.hmap
-        self.off_pattern, self.shift = (hmap.off_pattern, hmap.shift) if self.moved_entries else (None, None)
-
-    def coupling(self, C, dB):
-        if not self.active:
-            return np.zeros_like(C)
-        if self._H_cb is None:
-            self._vertex_hessian(C)
-        return (self.contact.W3.T @ (self._H_cb @ dB.ravel())).reshape(-1, 3)
+        return self.potential.hessian(self.tangential, self.contact.mesh, self._v(C), method) / self.dt
