@@ -100,10 +100,11 @@ def excluded_pairs(seams: list[SeamSpec], pieces: dict, vertex_offsets: dict, re
 
 
 def _add_pairs(pairs: set, va, vb) -> None:
-    for i in va:
-        for j in vb:
-            if i != j:
-                pairs.add((min(int(i), int(j)), max(int(i), int(j))))
+    """Add every (i, j), i in va, j in vb, i != j, as (min, max)."""
+    I, J = np.meshgrid(np.asarray(va, np.int64), np.asarray(vb, np.int64), indexing="ij")
+    I, J = I.ravel(), J.ravel()
+    keep = I != J
+    pairs.update(zip(np.minimum(I, J)[keep].tolist(), np.maximum(I, J)[keep].tolist()))
 
 
 def _spacing(piece) -> float:
