@@ -7,7 +7,6 @@ Newton iteration copies them and lets the state-dependent energies add their blo
 from __future__ import annotations
 
 import numpy as np
-
 import scipy.sparse as sp
 
 from .assembly import BlockPattern

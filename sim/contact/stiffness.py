@@ -36,11 +36,14 @@ class AdaptiveStiffness:
         if b.n_collisions_at(C) == 0:
             return b.kappa
         free = potential.free_points
+        # Each gradient once: the barrier's at unit stiffness, the rest of the potential's.
         g_B = np.zeros_like(C)
-        kappa, b.kappa = b.kappa, 1.0
         b.add_gradient(C, g_B)
-        b.kappa = kappa
-        g_E = potential.gradient(C) - kappa * g_B
+        g_B /= b.kappa
+        g_E = np.zeros_like(C)
+        for e in potential.energies:
+            if e is not b:
+                e.add_gradient(C, g_E)
         gB, gE = g_B[free].ravel(), g_E[free].ravel()
         k0 = -float(gE @ gB) / max(float(gB @ gB), 1e-300)
         d = b.min_distance(C)
