@@ -134,8 +134,7 @@ class Simulator:
         self.seams = list(seams)
         self.seam = None
         if self.seams:
-            rest = np.concatenate([p.patch.rest.reshape(-1, 2) for p in self.pieces])
-            samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, rest)
+            samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, self._rest_points())
             self.seam = SeamEnergy(samples, seam_stiffness)
             self.energies.append(self.seam)
         # Seams stiffen linearly over `seam_ramp` s, so open panels close gently.
@@ -194,6 +193,10 @@ class Simulator:
         self.t = 0.0
         self.step_count = 0
 
+    def _rest_points(self) -> np.ndarray:
+        """(n_cp, 2) rest control points of all pieces, stacked."""
+        return np.concatenate([p.patch.rest.reshape(-1, 2) for p in self.pieces])
+
     def _contact_energy(self, contact) -> BarrierEnergy:
         """IPC barrier on the pieces' embedded meshes and the obstacles."""
         W = sp.vstack([p.W for p in self.pieces]).tocsr()
@@ -206,10 +209,10 @@ class Simulator:
         excluded = set()
         if self.seams:
             starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
-            rest = np.concatenate([p.patch.rest.reshape(-1, 2) for p in self.pieces])
             excluded = excluded_pairs(self.seams, {p.name: p for p in self.pieces},
                                       {p.name: int(o) for p, o in zip(self.pieces, starts)},
-                                      {p.name: p.topology.rest for p in self.pieces}, self.n_cp, rest)
+                                      {p.name: p.topology.rest for p in self.pieces}, self.n_cp,
+                                      self._rest_points())
         mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact, excluded)
         x0 = mesh.vertices(C0)
         if ipctk.has_intersections(mesh.mesh, x0):
