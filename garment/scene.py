@@ -246,6 +246,7 @@ class ObstacleSpec:
     point: tuple[float, float, float] = (0.0, 0.0, 0.0)
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     size: float = 10.0
+    inset: float = 0.0  # m: start this far inside the surface, grow out over the first half of the pre-roll
 
 
 @dataclass
@@ -264,16 +265,31 @@ class ContactSpec:
 
 
 @dataclass
+class PlacementSpec:
+    """The garment's starting shape from another file: an OBJ whose first `v` lines are the
+    source panel mesh's vertices in the same order (a sewn drape from an earlier run, as
+    Codim-IPC starts its dress_knife scenes from drape.obj), scaled by `scale`, turned
+    Z-up when `up` = "y", then moved by `translate` (the obstacle conventions)."""
+
+    file: Path
+    scale: float = 1.0
+    up: str = "z"
+    translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass
 class GarmentSpec:
     """A garment: the patches and seams of a patch file (`garment conform` output), or a
     panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m). Seams are
-    held by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py)."""
+    held by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py).
+    `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
 
     name: str
     source: Path
     knot_span: float = 0.03
     seam_stiffness: float = 1e6
     material: Material = PRESETS["cotton"]
+    placement: PlacementSpec | None = None
 
 
 @dataclass
@@ -328,13 +344,18 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
     garments = [_read_garment(t, i, base, material) for i, t in enumerate(root.tables("garment", _GARMENT_KEYS))]
     cloths = _read_cloths(root, material, required=not garments)
     obstacles = [_read_obstacle(t, i, base) for i, t in enumerate(root.tables("obstacle", _OBSTACLE_KEYS))]
+    time_spec = _read_time(root.table("time", _TIME_KEYS))
+    for i, o in enumerate(obstacles):
+        if o.inset > 0.0 and time_spec.preroll <= 0.0:
+            raise SceneError(source, f"obstacle[{i}].inset", "an inset body grows out during the pre-roll: "
+                                                            "set [time] preroll > 0")
     return Scene(
         name=info.string("name") or (path.stem if path else "scene"),
         path=path,
         cloths=cloths,
         pins=[_read_pin(t, cloths) for t in root.tables("pin", _PIN_KEYS)],
         load=_read_load(root.table("load", _LOAD_KEYS)),
-        time=_read_time(root.table("time", _TIME_KEYS)),
+        time=time_spec,
         output=_read_output(root.table("output", _OUTPUT_KEYS)),
         description=info.string("description", allow_empty=True) or "",
         obstacles=obstacles,
@@ -346,7 +367,8 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
 # --------------------------------------------------------------------------- tables
 
 _TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact", "garment")
-_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_stiffness", "material")
+_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_stiffness", "material", "placement")
+_PLACEMENT_KEYS = ("file", "scale", "up", "translate")
 _MATERIAL_NUMBERS = {  # key -> bounds
     "E_st": {"gt": 0},
     "E_sh": {"ge": 0},
@@ -364,7 +386,7 @@ _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
 _TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode", "preroll")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
-_OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane", "spin")
+_OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane", "spin", "inset")
 _SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
 _SPHERE_KEYS = ("center", "radius", "subdivisions")
 _PLANE_KEYS = ("point", "normal", "size")
@@ -398,8 +420,19 @@ def _read_garment(t: _Table, index: int, base: Path, scene_material: Material) -
     if not src.is_file():
         t.fail(t.key("source"), f"no such file: {src}")
     span = t.number("knot_span_mm", gt=0)
+    placement = None
+    if "placement" in t:
+        pt = t.table("placement", _PLACEMENT_KEYS)
+        file = Path(pt.string("file", required=True))
+        file = file if file.is_absolute() else base / file
+        if not file.is_file():
+            pt.fail(pt.key("file"), f"no such file: {file}")
+        if src.suffix.lower() != ".obj":
+            pt.fail(pt.path, f"a placement needs a panel OBJ source (its vertex order), not {src.name}")
+        placement = PlacementSpec(file, **_given(scale=pt.number("scale", gt=0), up=pt.choice("up", UP_AXES),
+                                                 translate=pt.numbers("translate", 3)))
     return GarmentSpec(
-        name=t.string("name") or f"garment{index}", source=src,
+        name=t.string("name") or f"garment{index}", source=src, placement=placement,
         material=_read_material(t.table("material", _MATERIAL_KEYS), scene_material),
         **_given(knot_span=span / 1000.0 if span else None, seam_stiffness=t.number("seam_stiffness", gt=0)),
     )
@@ -552,7 +585,8 @@ def _read_obstacle(t: _Table, index: int, base: Path) -> ObstacleSpec:
     if len(kinds) != 1:
         t.fail(t.path, f"needs exactly one of 'mesh', 'animation', 'sphere', 'plane', got {kinds or 'none'}")
     kind = kinds[0]
-    values: dict[str, Any] = {"name": t.string("name") or f"obstacle{index}", "kind": kind}
+    values: dict[str, Any] = {"name": t.string("name") or f"obstacle{index}", "kind": kind,
+                              **_given(inset=t.number("inset", ge=0))}
     if kind == "mesh":
         mesh = Path(t.string("mesh", required=True))
         mesh = mesh if mesh.is_absolute() else base / mesh

@@ -80,7 +80,12 @@ def excluded_pairs(seams: list[SeamSpec], pieces: dict, vertex_offsets: dict, re
         for j in range(len(sides[0])):
             # Window of neighbouring samples, so bands overlap where samples are sparse.
             va = np.unique(np.concatenate(sides[0][max(j - 1, 0):j + 2]))
+            vb = np.unique(np.concatenate(sides[1][max(j - 1, 0):j + 2]))
             _add_pairs(pairs, va, sides[1][j])
+            # Within each side too: the seam allowance folds sharply where a seam pulls
+            # (a fitted drape starts so), a crease of the cloth itself, not a contact.
+            _add_pairs(pairs, va, va)
+            _add_pairs(pairs, vb, vb)
     # Junctions: sample ends of different seams on one piece that nearly coincide.
     for a in range(len(ends)):
         ka, pa, Pa, na, ra = ends[a]

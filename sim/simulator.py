@@ -254,8 +254,9 @@ class Simulator:
         opts = newton or NewtonOptions()
         opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
         obstacles = [load_obstacle(o) for o in scene.obstacles]
-        for o in obstacles:
+        for o, spec in zip(obstacles, scene.obstacles):
             o.delay = tm.preroll  # bodies hold their first pose while seams close
+            o.inset, o.grow = spec.inset, 0.5 * tm.preroll
         sim = cls(
             patches, materials, groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,

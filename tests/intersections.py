@@ -30,6 +30,11 @@ def _segments_hit_triangles(p, q, a, b, c, eps=1e-14):
 def intersecting_pairs(V1, F1, V2=None, F2=None, chunk=200_000) -> int:
     """Number of intersecting triangle pairs between mesh 1 and mesh 2 (or within mesh 1
     when mesh 2 is omitted, skipping pairs that share a vertex)."""
+    return len(intersecting_triangles(V1, F1, V2, F2, chunk))
+
+
+def intersecting_triangles(V1, F1, V2=None, F2=None, chunk=200_000) -> np.ndarray:
+    """(K, 2) indices (triangle of mesh 1, triangle of mesh 2) of the intersecting pairs."""
     same = V2 is None
     if same:
         V2, F2 = V1, F1
@@ -50,7 +55,7 @@ def intersecting_pairs(V1, F1, V2=None, F2=None, chunk=200_000) -> int:
         i_all.append(np.full(len(j), i))
         j_all.append(j)
     I, J = np.concatenate(i_all), np.concatenate(j_all)
-    count = 0
+    hits = []
     for s in range(0, len(I), chunk):
         A, B = T1[I[s:s + chunk]], T2[J[s:s + chunk]]
         hit = np.zeros(len(A), bool)
@@ -59,5 +64,6 @@ def intersecting_pairs(V1, F1, V2=None, F2=None, chunk=200_000) -> int:
             hit |= _segments_hit_triangles(p, q, B[:, 0], B[:, 1], B[:, 2])
             p, q = B[:, e], B[:, (e + 1) % 3]
             hit |= _segments_hit_triangles(p, q, A[:, 0], A[:, 1], A[:, 2])
-        count += int(hit.sum())
-    return count
+        hits.append(np.nonzero(hit)[0] + s)
+    k = np.concatenate(hits) if hits else np.zeros(0, np.int64)
+    return np.stack([I[k], J[k]], axis=1)

@@ -44,6 +44,15 @@ class BodySequence:
         return (len(self.frames) - 1) * self.frame_dt
 
 
+def to_scene_frame(points: np.ndarray, scale: float = 1.0, up: str = "z", translate=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Points (..., 3) of a file scaled, turned Z-up when the file is Y-up (+90 degrees
+    about X) and moved: the one convention of bodies, obstacle meshes and placements."""
+    points = points * scale
+    if up == "y":
+        points = points[..., [0, 2, 1]] * np.array([1.0, -1.0, 1.0])
+    return points + np.asarray(translate, float)
+
+
 def load_sequence(path: Path, scale: float = 1.0, up: str = "z", translate=(0.0, 0.0, 0.0),
                   fps: float | None = None) -> BodySequence:
     """Read an NPZ or OBJ-directory body sequence and check it is usable."""
@@ -61,10 +70,7 @@ def load_sequence(path: Path, scale: float = 1.0, up: str = "z", translate=(0.0,
         frame_dt = file_dt
     else:
         raise InputError(f"{path}: the sequence does not store its frame time; give `fps` in the scene")
-    frames = frames.astype(float) * scale
-    if up == "y":
-        frames = frames[..., [0, 2, 1]] * np.array([1.0, -1.0, 1.0])
-    frames += np.asarray(translate, float)
+    frames = to_scene_frame(frames.astype(float), scale, up, translate)
     _check(path, frames, faces)
     return BodySequence(np.ascontiguousarray(frames), faces, float(frame_dt))
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import numpy as np
 
 from garment.errors import InputError
 from garment.model import PatchSet
@@ -19,6 +19,8 @@ def load_garment(spec) -> PatchSet:
         from garment.commands.conform import read_input
 
         panels, seams = read_input(spec.source, spacing=min(spec.knot_span / 6.0, 0.003))
+        if spec.placement is not None:
+            place_panels(panels, spec.placement)
         ps = conform_all(panels, seams, ConformOptions(knot_span=spec.knot_span))
     if ps.failures:
         names = ", ".join(f"{k} ({v})" for k, v in ps.failures.items())
@@ -26,6 +28,40 @@ def load_garment(spec) -> PatchSet:
     if not ps.patches:
         raise InputError(f"{spec.source}: garment {spec.name!r} has no patches")
     return ps
+
+
+# A placement whose edges are on median this much longer or shorter than the panels' rest
+# edges is the wrong file or scale (a drape stretches cloth by a few per cent, not 20 %).
+PLACEMENT_STRAIN = 0.2
+
+
+def place_panels(panels, placement) -> None:
+    """Replace each panel's 3D layout by the placement file's positions of its vertices."""
+    from .bodies import to_scene_frame
+
+    path = placement.file
+    try:
+        with open(path) as f:
+            rows = [line.split()[1:4] for line in f if line.startswith("v ")]
+        V = np.asarray(rows, float).reshape(-1, 3)
+    except (OSError, ValueError) as e:
+        raise InputError(f"{path}: cannot read the placement's vertices ({e})") from None
+    need = 1 + max(int(p.vertex_ids.max()) for p in panels)
+    if V.shape[0] < need:
+        raise InputError(f"{path}: the placement has {V.shape[0]} vertices but the panels use {need} "
+                         "(it must list the source mesh's vertices first, in the same order)")
+    V = to_scene_frame(V[:need], placement.scale, placement.up, placement.translate)
+    if not np.all(np.isfinite(V)):
+        raise InputError(f"{path}: the placement has non-finite vertex positions")
+    for p in panels:
+        world = V[p.vertex_ids]
+        e = np.concatenate([p.faces[:, [0, 1]], p.faces[:, [1, 2]], p.faces[:, [2, 0]]])
+        rest = np.linalg.norm(p.rest[e[:, 0]] - p.rest[e[:, 1]], axis=1)
+        ratio = float(np.median(np.linalg.norm(world[e[:, 0]] - world[e[:, 1]], axis=1) / rest))
+        if abs(ratio - 1.0) > PLACEMENT_STRAIN:
+            raise InputError(f"{path}: panel {p.name}'s placed edges are {ratio:.3g} x their rest length "
+                             "(median): a different mesh or a wrong `scale`?")
+        p.world = world
 
 
 def _is_patch_file(path) -> bool:

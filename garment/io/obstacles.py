@@ -9,7 +9,7 @@ import numpy as np
 
 from garment.errors import InputError
 
-from .bodies import BodySequence, check_up_axis, load_sequence
+from .bodies import BodySequence, check_up_axis, load_sequence, to_scene_frame
 
 
 @dataclass
@@ -23,19 +23,36 @@ class ObstacleGeometry:
     sequence: BodySequence | None = None
     spin: object | None = None  # garment.scene.Spin
     delay: float = 0.0  # s: the motion starts this late (pre-roll), holding the first pose
+    # A garment fitted to a drape can dip a millimetre or two into the body it was draped
+    # on. The body then starts `inset` m inside its surface (along vertex normals) and
+    # grows to full size over `grow` s, pushing the cloth out through contact.
+    inset: float = 0.0
+    grow: float = 0.0
+    _normals: np.ndarray | None = None
 
     @property
     def animated(self) -> bool:
-        return self.sequence is not None or self.spin is not None
+        return self.sequence is not None or self.spin is not None or self.inset > 0.0
 
     def at(self, t: float) -> np.ndarray:
         """(V, 3) vertex positions at time t."""
-        t = t - self.delay
+        if self.inset > 0.0 and t < self.grow:
+            return self._pose(t - self.delay) - (self.inset * (1.0 - t / self.grow)) * self._vertex_normals()
+        return self._pose(t - self.delay)
+
+    def _pose(self, t: float) -> np.ndarray:
         if self.sequence is not None:
             return self.sequence.at(t)
         if self.spin is not None:
             return _rotate(self.vertices, self.spin.axis, self.spin.center, self.spin.angle(t))
         return self.vertices
+
+    def _vertex_normals(self) -> np.ndarray:
+        if self._normals is None:
+            import trimesh
+
+            self._normals = np.asarray(trimesh.Trimesh(self.vertices, self.faces, process=False).vertex_normals)
+        return self._normals
 
 
 def _rotate(V: np.ndarray, axis, center, angle: float) -> np.ndarray:
@@ -72,13 +89,11 @@ def _geometry(spec) -> ObstacleGeometry:
         m = trimesh.load(spec.mesh, force="mesh", process=False)
     except Exception as e:  # trimesh raises many types for unreadable files
         raise InputError(f"{spec.mesh}: cannot read obstacle mesh ({e})") from None
-    V = np.asarray(m.vertices, float) * spec.scale
+    V = np.asarray(m.vertices, float)
     F = np.asarray(m.faces, np.int32)
     if V.size == 0 or F.size == 0 or not np.all(np.isfinite(V)):
         raise InputError(f"{spec.mesh}: obstacle mesh has no triangles or non-finite vertices")
-    if spec.up == "y":  # Y-up files to the simulator's Z-up: rotate +90 degrees about X
-        V = V[:, [0, 2, 1]] * np.array([1.0, -1.0, 1.0])
-    return ObstacleGeometry(spec.name, V + np.asarray(spec.translate, float), F)
+    return ObstacleGeometry(spec.name, to_scene_frame(V, spec.scale, spec.up or "z", spec.translate), F)
 
 
 def plane_quad(point, normal, size: float) -> tuple[np.ndarray, np.ndarray]:

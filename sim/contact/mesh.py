@@ -24,7 +24,7 @@ class ContactMesh:
         self.W = W.tocsr()
         self.n_cloth = W.shape[0]
         self.obstacles = list(obstacles)
-        self.obstacle_vertices = (np.concatenate([o.vertices for o in self.obstacles])
+        self.obstacle_vertices = (np.concatenate([o.at(0.0) for o in self.obstacles])
                                   if self.obstacles else np.zeros((0, 3)))
         faces = [np.asarray(cloth_faces, np.int32)]
         offset = self.n_cloth
