@@ -1,24 +1,36 @@
-"""`garment demo`: the bundled default, the upright hanging cloth for 1 s -> out/demo.rrd."""
+"""`garment demo`: conform the bundled poncho, sew it onto the dancing Rumba body and
+simulate a short clip -> out/demo.rrd and out/demo.mp4 (assets/scenes/poncho_rumba.toml)."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from .simulate import simulate
 
+SCENE = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "poncho_rumba.toml"
+
 
 def run(args) -> int:
-    from garment.bench.common import scene as bundled
+    from garment.scene import load_scene
+    from viz.render import RenderOptions
 
-    n = args.resolution
-    simulate(bundled("hanging", (n, n), frames=args.frames), args.output, None, quiet=args.quiet)
+    scene = load_scene(SCENE)
+    scene = dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=args.frames))
+    video = None if args.no_video else args.output.with_suffix(".mp4")
+    simulate(scene, args.output, None, quiet=args.quiet, render_to=video,
+             render_options=RenderOptions(size=(640, 640), fps=25.0, azimuth=-70.0, elevation=10.0))
+    print(f"\nrecording: {args.output.resolve()}  (open it with: rerun {args.output})")
+    if video is not None:
+        print(f"video:     {video.resolve()}")
     return 0
 
 
 def register(sub) -> None:
-    d = sub.add_parser("demo", help="the bundled default: upright hanging cloth for 1 s")
+    d = sub.add_parser("demo", help="sew the bundled poncho onto the dancing body and simulate a short clip")
     d.add_argument("-o", "--output", type=Path, default=Path("out/demo.rrd"))
-    d.add_argument("--resolution", type=int, default=40, help="control points per side")
-    d.add_argument("--frames", type=int, default=100, help="frames of 0.01 s")
+    d.add_argument("--frames", type=int, default=75,
+                   help="frames of 0.04 s (the first 0.3 s are the pre-roll that sews the seams)")
+    d.add_argument("--no-video", action="store_true", help="skip the MP4")
     d.add_argument("-q", "--quiet", action="store_true")
     d.set_defaults(func=run)
