@@ -246,7 +246,7 @@ class ObstacleSpec:
     point: tuple[float, float, float] = (0.0, 0.0, 0.0)
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     size: float = 10.0
-    inset: float = 0.0  # m: start this far inside the surface, grow out over the first half of the pre-roll
+    inset: float = 0.0  # m: start this far inside the surface; the seams close in the first half of the pre-roll, the body grows back in the second
 
 
 @dataclass

@@ -255,11 +255,12 @@ class Simulator:
         obstacles = [load_obstacle(o) for o in scene.obstacles]
         for o, spec in zip(obstacles, scene.obstacles):
             o.delay = tm.preroll  # bodies hold their first pose while seams close
-            o.inset, o.grow = spec.inset, 0.5 * tm.preroll
+            o.inset, o.grow = spec.inset, (0.5 * tm.preroll, tm.preroll)  # after the seams
         sim = cls(
             patches, materials, groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,
-            scene.contact, obstacles, seams, max(stiffness, default=1e6), tm.preroll,
+            scene.contact, obstacles, seams, max(stiffness, default=1e6),
+            0.5 * tm.preroll if any(o.inset > 0.0 for o in obstacles) else tm.preroll,
         )
         for c, piece in zip(scene.cloths, sim.pieces):
             sim.V[piece.slice] = np.asarray(c.velocity, float)

@@ -107,14 +107,27 @@ def test_placement_errors_name_the_file(tmp_path):
         parse_scene(doc, "dress.toml")
 
 
-def test_inset_body_grows_to_its_pose_over_the_first_half_of_the_preroll():
+def test_inset_body_grows_to_its_pose_over_the_second_half_of_the_preroll():
     import trimesh
 
     m = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
     body = ObstacleGeometry("ball", np.asarray(m.vertices), np.asarray(m.faces, np.int32),
-                            delay=0.2, inset=0.004, grow=0.1)
+                            delay=0.2, inset=0.004, grow=(0.1, 0.2))
     r = lambda t: np.linalg.norm(body.at(t), axis=1)  # noqa: E731
     np.testing.assert_allclose(r(0.0), 0.1 - 0.004, rtol=1e-3)  # vertex normals of an icosphere are radial
-    np.testing.assert_allclose(r(0.05), 0.1 - 0.002, rtol=1e-3)
-    np.testing.assert_allclose(r(0.1), 0.1, rtol=1e-12)
+    np.testing.assert_allclose(r(0.1), 0.1 - 0.004, rtol=1e-3)
+    np.testing.assert_allclose(r(0.15), 0.1 - 0.002, rtol=1e-3)
+    np.testing.assert_allclose(r(0.2), 0.1, rtol=1e-12)
     assert body.animated
+
+
+def test_inset_stops_short_of_turning_thin_parts_inside_out():
+    import trimesh
+
+    m = trimesh.creation.box(extents=(0.3, 0.3, 0.01)).subdivide().subdivide()  # a 1 cm slab
+    body = ObstacleGeometry("slab", np.asarray(m.vertices), np.asarray(m.faces, np.int32), inset=0.03, grow=(0.1, 0.2))
+    z = np.abs(body.at(0.0)[:, 2])
+    top = np.abs(m.vertices[:, 2]) > 0.004
+    inner = top & (np.abs(m.vertices[:, :2]).max(axis=1) < 0.1)  # away from the rims
+    assert z[inner].min() > 0.005 - 0.4 * 0.01 - 1e-9  # at most 0.4 x the 1 cm thickness
+    assert z[inner].max() < 0.005  # ...but moved in

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from . import cloth, compare, contact_hessian, partial_factorization, plate, wrinkle
+from . import garment as garment_bench
 from . import conform as conform_bench
 
 
@@ -43,6 +44,8 @@ BENCHMARKS = {
                   contact_hessian.run, (30, 50, 75), contact_hessian.COLUMNS, reports_steps=False),
         Benchmark("partial-factorization", "off-pattern contact couplings: diagonal vs CG/merge vs merge (two plates)",
                   partial_factorization.run, (10, 20, 30), partial_factorization.COLUMNS),
+        Benchmark("garment", "garment sewn onto the dancing body, cost per step by knot span (resolution = mm)",
+                  garment_bench.run, (40, 20), garment_bench.COLUMNS),
         Benchmark("compare", "B-spline vs linear FEM (pairs, plate, locking, ablation; --case, --out)",
                   compare.run, (), compare.COLUMNS),
     )

@@ -23,12 +23,13 @@ class ObstacleGeometry:
     sequence: BodySequence | None = None
     spin: object | None = None  # garment.scene.Spin
     delay: float = 0.0  # s: the motion starts this late (pre-roll), holding the first pose
-    # A garment fitted to a drape can dip a millimetre or two into the body it was draped
-    # on. The body then starts `inset` m inside its surface (along vertex normals) and
-    # grows to full size over `grow` s, pushing the cloth out through contact.
+    # Dressing: the body starts `inset` m inside its surface (along vertex normals) and
+    # grows to full size between times grow[0] and grow[1], pushing the cloth out through
+    # contact. Seams then close around a slimmer body (their straight pulls clear it), and
+    # a garment fitted to a drape may dip a millimetre into the body it was draped on.
     inset: float = 0.0
-    grow: float = 0.0
-    _normals: np.ndarray | None = None
+    grow: tuple[float, float] = (0.0, 0.0)
+    _offsets: np.ndarray | None = None
 
     @property
     def animated(self) -> bool:
@@ -36,8 +37,9 @@ class ObstacleGeometry:
 
     def at(self, t: float) -> np.ndarray:
         """(V, 3) vertex positions at time t."""
-        if self.inset > 0.0 and t < self.grow:
-            return self._pose(t - self.delay) - (self.inset * (1.0 - t / self.grow)) * self._vertex_normals()
+        t0, t1 = self.grow
+        if self.inset > 0.0 and t < t1:
+            return self._pose(t - self.delay) - min((t1 - t) / (t1 - t0), 1.0) * self._inset_offsets()
         return self._pose(t - self.delay)
 
     def _pose(self, t: float) -> np.ndarray:
@@ -47,12 +49,23 @@ class ObstacleGeometry:
             return _rotate(self.vertices, self.spin.axis, self.spin.center, self.spin.angle(t))
         return self.vertices
 
-    def _vertex_normals(self) -> np.ndarray:
-        if self._normals is None:
+    def _inset_offsets(self) -> np.ndarray:
+        """(V, 3) inward offsets of the first pose: `inset` along the vertex normals, at most
+        0.4 x the local thickness (fingers and wrists would turn inside out)."""
+        if self._offsets is None:
             import trimesh
+            from scipy.spatial import cKDTree
 
-            self._normals = np.asarray(trimesh.Trimesh(self.vertices, self.faces, process=False).vertex_normals)
-        return self._normals
+            V = self.vertices
+            n = np.asarray(trimesh.Trimesh(V, self.faces, process=False).vertex_normals)
+            # Thickness: distance to the nearest vertex facing the other way (the far side).
+            k = min(64, len(V))
+            dist, idx = cKDTree(V).query(V, k=k, distance_upper_bound=2.5 * self.inset)
+            hit = np.isfinite(dist)
+            opposite = hit & (np.einsum("vd,vkd->vk", n, n[np.where(hit, idx, 0)]) < -0.5)
+            thickness = np.where(opposite, dist, np.inf).min(axis=1)
+            self._offsets = np.minimum(self.inset, 0.4 * thickness)[:, None] * n
+        return self._offsets
 
 
 def _rotate(V: np.ndarray, axis, center, angle: float) -> np.ndarray:
