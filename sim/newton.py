@@ -114,6 +114,8 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if alpha < opts.min_step:
             break  # no descent possible along p: stationary to round-off
         C, E = trial, E_new
+        if ip.on_iterate is not None and ip.on_iterate(C):
+            E = ip.value(C)
     if drive is not None and drive.animated:
         stats.extra["body_lag"] = drive.lag()
     ip.projection_backoff = (skip, wait)

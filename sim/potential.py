@@ -35,6 +35,9 @@ class IncrementalPotential:
         self.variable = [e for e in energies if e.variable_pattern]
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
+        # Called with each accepted Newton iterate; True when it changed an energy (the
+        # adaptive barrier stiffness doubling within a step, sim/contact/stiffness.py).
+        self.on_iterate = None
 
     def refresh_constant(self) -> None:
         """(Re)assemble the constant Hessian terms (after a time-step change)."""

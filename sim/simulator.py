@@ -185,6 +185,8 @@ class Simulator:
             self.pinned[group.indices] = True
         self.potential = IncrementalPotential(self.energies, ~self.pinned)
         self.potential.drive = self.drive
+        if self.stiffness is not None:
+            self.potential.on_iterate = self.stiffness.on_iterate
 
         # State.
         self.C = self.C0.copy()

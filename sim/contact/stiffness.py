@@ -3,7 +3,8 @@
 kappa balances the barrier gradient against the rest of the incremental potential's
 gradient at the start of every step with contacts, kappa = -g_E . g_B / |g_B|^2, clamped
 to [kappa_min, 1e4 kappa_min], and doubles between steps while the closest distance keeps
-shrinking below d_hat / 10. ipctk's own initial_barrier_stiffness assumes the plain
+shrinking below d_hat / 10, and between Newton iterations while it shrinks below
+d_hat / 1000. ipctk's own initial_barrier_stiffness assumes the plain
 barrier on squared distances and mass units; ours is the normalised, area-weighted barrier
 whose kappa is a pressure, so the floor is physical instead: at half of d_hat the barrier
 holds the cloth's weight plus the inertia of moving d_hat within one step,
@@ -28,6 +29,7 @@ class AdaptiveStiffness:
         self.kappa_max = _RANGE * self.kappa_min
         self.floor = self.kappa_min
         self._prev_d = np.inf
+        self._iterate_d = np.inf
         barrier.kappa = self.kappa_min
 
     def update(self, potential, C: np.ndarray) -> float:
@@ -50,5 +52,22 @@ class AdaptiveStiffness:
         if d < 0.1 * b.dhat and d < self._prev_d:
             self.floor = min(2.0 * self.floor, self.kappa_max)
         self._prev_d = d
+        self._iterate_d = np.inf
         b.kappa = float(np.clip(max(k0, self.floor), self.kappa_min, self.kappa_max))
         return b.kappa
+
+    def on_iterate(self, C: np.ndarray) -> bool:
+        """Within a step, as IPC does after each Newton iteration: double kappa while the
+        closest distance is below d_hat / 1000 and still shrinking. A stiffness chosen at
+        the step's start cannot hold cloth that a seam or a body then presses harder: the
+        cloth sinks to 1e-7 m, where the barrier's Hessian spans 10 orders of magnitude
+        and Newton stalls at its iteration cap."""
+        b = self.barrier
+        d = b.min_distance(C)
+        shrinking = d < 1e-3 * b.dhat and d < self._iterate_d
+        self._iterate_d = d
+        if shrinking and b.kappa < self.kappa_max:
+            b.kappa = min(2.0 * b.kappa, self.kappa_max)
+            self.floor = max(self.floor, b.kappa)
+            return True
+        return False
