@@ -59,7 +59,7 @@ COLUMNS = ("case", "method", "variant", "E_st", "E_sh_ratio", "resolution", "lin
            "seconds_per_step_bspline", "seconds_per_step_linear", "speedup", "newton_iterations_bspline",
            "newton_iterations_linear", "hausdorff_mm", "material_rms_mm", "folds_bspline", "folds_linear",
            "max_dihedral_deg_bspline", "max_dihedral_deg_linear", "rel_error", "seconds",
-           "sag_m_bspline", "sag_m_linear_aligned", "sag_m_linear_crossing",
+           "sag_m_bspline", "sag_m_linear_aligned", "sag_m_linear_crossing", "at_rest",
            "seconds_per_iteration", "assembly_seconds", "factorization_seconds", "solve_seconds",
            "line_search_seconds")
 

@@ -55,7 +55,7 @@ def write(rows: list[dict], folder: Path) -> list[Path]:
                                ("sag_m_linear_aligned", "linear, fold along edges")):
                 ax.semilogx(E, [r[key] for r in series], "o" + style, label=f"{label} (E_sh/E_st {ratio:g})")
         ax.set_xlabel("E_st (Pa)")
-        ax.set_ylabel(f"sag after {locking[0]['time_s']:g} s (m)")
+        ax.set_ylabel("sag at rest (m)")
         ax.legend(fontsize=7)
         save(fig, "locking_sag.png")
 
