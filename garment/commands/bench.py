@@ -15,10 +15,11 @@ def run(args) -> int:
     kwargs = {"steps": args.steps}
     if args.quadrature:
         kwargs["quadrature"] = args.quadrature
-    if args.case or args.out:
-        if args.name != "compare":
-            raise SystemExit("--case and --out apply to `garment bench compare` only")
-        kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
+    if args.out and args.name != "compare":
+        raise SystemExit("--out applies to `garment bench compare` only")
+    if args.case and args.name not in ("compare", "garment"):
+        raise SystemExit("--case applies to `garment bench compare` and `garment bench garment` only")
+    kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
     with progress(args.quiet or args.json) as bar:
         task = bar.add_task(args.name, total=None, status="")
 
@@ -51,8 +52,8 @@ def register(sub) -> None:
     b.add_argument("--steps", type=int, help="time steps per case")
     b.add_argument("--quadrature", choices=QUADRATURES)
     b.add_argument("--json", action="store_true", help="print one JSON object")
-    b.add_argument("--case", help="compare only: comma-separated cases (hanging, drape, shear, sphere, "
-                                  "plate, locking, ablation)")
+    b.add_argument("--case", help="compare: comma-separated cases (hanging, drape, shear, sphere, plate, "
+                                  "locking, ablation); garment: poncho (default) or dress")
     b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(func=run)
