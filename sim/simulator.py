@@ -255,14 +255,16 @@ class Simulator:
         opts = newton or NewtonOptions()
         opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
         obstacles = [load_obstacle(o) for o in scene.obstacles]
+        # Pre-roll: bodies hold their first pose while the seams close; inset bodies grow
+        # back in its second half, once the seams are sewn.
+        sewn = 0.5 * tm.preroll if any(o.inset > 0.0 for o in scene.obstacles) else tm.preroll
         for o, spec in zip(obstacles, scene.obstacles):
-            o.delay = tm.preroll  # bodies hold their first pose while seams close
-            o.inset, o.grow = spec.inset, (0.5 * tm.preroll, tm.preroll)  # after the seams
+            o.delay = tm.preroll
+            o.inset, o.grow = spec.inset, (sewn, tm.preroll)
         sim = cls(
             patches, materials, groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,
-            scene.contact, obstacles, seams, max(stiffness, default=1e6),
-            0.5 * tm.preroll if any(o.inset > 0.0 for o in obstacles) else tm.preroll,
+            scene.contact, obstacles, seams, max(stiffness, default=1e6), sewn,
         )
         for c, piece in zip(scene.cloths, sim.pieces):
             sim.V[piece.slice] = np.asarray(c.velocity, float)
