@@ -17,10 +17,12 @@ Panels placed by a rigid transform (GarmentCode) map the rest points directly.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from garment.model import Panel
+from sim.embedding import interpolation_matrix
 
 
 def barycentric(P: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -103,8 +105,6 @@ def lift(panel: Panel, X: np.ndarray) -> np.ndarray:
     n, m = X.shape[:2]
     if panel.world is None or panel.faces is None:
         return panel.place(X.reshape(-1, 2)).reshape(n, m, 3)
-    from sim.embedding import interpolation_matrix
-
     u = np.linspace(0.0, n - 2, SAMPLES_PER_SPAN * (n - 2) + 1)
     v = np.linspace(0.0, m - 2, SAMPLES_PER_SPAN * (m - 2) + 1)
     U, V = np.meshgrid(u, v, indexing="ij")
@@ -129,8 +129,6 @@ def _affine_map(panel: Panel) -> np.ndarray:
 
 def _second_differences(n: int, m: int):
     """Second differences of an n x m control net along u, v and across (rows of D)."""
-    import scipy.sparse as sp
-
     def second(k):
         return sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(k - 2, k))
 
