@@ -190,6 +190,7 @@ class TimeSpec:
     max_newton_iterations: int = 100
     mode: str = "dynamic"
     preroll: float = 0.0  # s: animated bodies hold their first pose this long first
+    sewing: str = "dynamic"  # "quasistatic": velocities dropped after each sewing step of the pre-roll
 
 
 @dataclass
@@ -384,7 +385,7 @@ _CLOTH_KEYS = (
 _PERTURBATION_KEYS = ("amplitude", "waves")
 _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "duration")
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
-_TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode", "preroll")
+_TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode", "preroll", "sewing")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
 _OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane", "spin", "inset")
 _SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
@@ -392,6 +393,7 @@ _SPHERE_KEYS = ("center", "radius", "subdivisions")
 _PLANE_KEYS = ("point", "normal", "size")
 _CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact")
 UP_AXES = ("y", "z")
+SEWING_MODES = ("dynamic", "quasistatic")
 
 
 def _given(**values: Any) -> dict[str, Any]:
@@ -563,6 +565,7 @@ def _read_time(t: _Table) -> TimeSpec:
             max_newton_iterations=t.integer("max_newton_iterations", ge=1),
             mode=t.choice("mode", TIME_MODES),
             preroll=t.number("preroll", ge=0),
+            sewing=t.choice("sewing", SEWING_MODES),
         )
     )
 

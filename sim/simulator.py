@@ -80,6 +80,7 @@ class Simulator:
         seams=(),
         seam_stiffness: float = 1e6,
         seam_ramp: float = 0.0,
+        quasistatic_sewing: bool = False,
     ):
         self.dt = float(dt)
         self.mode = mode
@@ -138,6 +139,8 @@ class Simulator:
             self.seam = SeamEnergy(samples, seam_stiffness)
             self.energies.append(self.seam)
         self.seam_ramp = float(seam_ramp)
+        self.seam_stiffness = float(seam_stiffness)
+        self.quasistatic_sewing = bool(quasistatic_sewing)
         if self.seam is not None and self.seam_ramp > 0.0:
             self.seam.set_scale(self._seam_scale(self.dt))
 
@@ -264,7 +267,7 @@ class Simulator:
         sim = cls(
             patches, materials, groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,
-            scene.contact, obstacles, seams, max(stiffness, default=1e6), sewn,
+            scene.contact, obstacles, seams, max(stiffness, default=1e6), sewn, tm.sewing == "quasistatic",
         )
         for c, piece in zip(scene.cloths, sim.pieces):
             sim.V[piece.slice] = np.asarray(c.velocity, float)
@@ -317,14 +320,16 @@ class Simulator:
         if self.friction is not None:
             self.friction.dt = self.dt
 
-    # Seams stiffen geometrically over `seam_ramp` s from this fraction of their stiffness:
-    # full-strength springs across 26 cm gaps yank panels shut in one step (kN on grams of
+    # Seams stiffen geometrically over `seam_ramp` s from this stiffness (N/m^2): full-
+    # strength springs across 26 cm gaps yank panels shut in one step (kN on grams of
     # cloth), which costs 100 Newton iterations and CCD-limited steps; weak springs close
-    # them over the pre-roll, and the rising stiffness then holds them below 1 mm.
-    SEAM_RAMP_START = 1e-5
+    # them over the pre-roll, and the rising stiffness then holds them below 1 mm. The start
+    # is absolute, not a fraction of k: it is what grams of cloth across open gaps can take.
+    SEAM_RAMP_START = 10.0
 
     def _seam_scale(self, t: float) -> float:
-        return self.SEAM_RAMP_START ** max(1.0 - t / self.seam_ramp, 0.0)
+        start = min(self.SEAM_RAMP_START / self.seam_stiffness, 1.0)
+        return start ** max(1.0 - t / self.seam_ramp, 0.0)
 
     def step(self) -> StepStats:
         """Advance one time step (or one quasi-static load increment)."""
@@ -363,6 +368,10 @@ class Simulator:
             stats.extra["contact_count"] = float(self.barrier.n_collisions)
             stats.extra["min_distance"] = self.barrier.min_distance(C_new)
         self.V = (C_new - self.C) / self.dt
+        if self.quasistatic_sewing and t_next < self.seam_ramp - 1e-9 * self.dt:
+            # Pulled shut, not thrown: seams closing 30 cm gaps around a body would fling
+            # the panels onto it, pinning them at 1e-5 m and stalling Newton (shirt_mean).
+            self.V[:] = 0.0
         self.C = C_new
         self.t = t_next
         self.step_count += 1

@@ -41,13 +41,16 @@ def intersecting_triangles(V1, F1, V2=None, F2=None, chunk=200_000) -> np.ndarra
     T1, T2 = V1[F1], V2[F2]
     lo1, hi1 = T1.min(1), T1.max(1)
     lo2, hi2 = T2.min(1), T2.max(1)
-    # Candidate pairs by sorting on x and bounding-box overlap.
+    # Candidate pairs by sorting on x (a window as wide as the widest triangle of mesh 2)
+    # and bounding-box overlap.
     i_all, j_all = [], []
     order = np.argsort(lo2[:, 0])
     lo2s = lo2[order, 0]
+    width = float((hi2[:, 0] - lo2[:, 0]).max(initial=0.0))
     for i in range(len(T1)):
+        k0 = np.searchsorted(lo2s, lo1[i, 0] - width, side="left")
         k = np.searchsorted(lo2s, hi1[i, 0], side="right")
-        j = order[:k]
+        j = order[k0:k]
         j = j[(hi2[j] >= lo1[i]).all(1) & (lo2[j] <= hi1[i]).all(1)]
         if same:
             j = j[j > i]

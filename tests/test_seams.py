@@ -47,3 +47,47 @@ def test_open_seam_closes_and_stays_closed_without_barriers():
     assert st.extra["contact_count"] == 0
     assert st.extra["seam_gap_max"] == sim.seam.samples.gaps(sim.C).max()  # reported per step
     assert st.converged
+
+
+def _ramped(quasistatic: bool, stiffness: float = 1e6) -> Simulator:
+    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.215, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
+    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (0.015, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
+    t = np.linspace(0.0, N - 2.0, 30)
+    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), t])
+    return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
+                     seams=[seam], seam_stiffness=stiffness, seam_ramp=0.05, quasistatic_sewing=quasistatic)
+
+
+def test_seam_ramp_starts_at_an_absolute_stiffness_and_ends_at_the_seams():
+    for k in (1e6, 1e7):
+        sim = _ramped(False, k)
+        start = Simulator.SEAM_RAMP_START
+        for t in (0.0, 0.025, 0.05, 0.08):
+            expected = start * (k / start) ** min(t / 0.05, 1.0)  # geometric from start to k
+            assert abs(sim._seam_scale(t) * k / expected - 1.0) < 1e-12, (k, t)
+
+
+def test_quasistatic_sewing_drops_velocities_only_while_the_seams_ramp():
+    sim = _ramped(True)
+    for _ in range(5):  # t = 0.01 .. 0.05: the sewing steps
+        sim.step()
+        assert sim.t > 0.05 - 1e-12 or not sim.V.any()
+    assert sim.seam.samples.gaps(sim.C).max() < 1e-3  # 3 cm closed while being pulled, not thrown
+    sim.step()
+    assert np.abs(sim.V[:, 2]).min() > 0.05  # then free fall keeps its momentum again
+    dynamic = _ramped(False)
+    dynamic.step()
+    assert dynamic.V.any()
+
+
+def test_scene_sewing_mode_is_checked():
+    import pytest
+
+    from garment.errors import InputError
+    from garment.scene import parse_scene
+
+    cloth = {"cloth": [{"size": [0.2, 0.2], "control_points": [5, 5]}]}
+    assert parse_scene({**cloth, "time": {"sewing": "quasistatic"}}, "s.toml").time.sewing == "quasistatic"
+    assert parse_scene(cloth, "s.toml").time.sewing == "dynamic"
+    with pytest.raises(InputError, match="s.toml.*sewing"):
+        parse_scene({**cloth, "time": {"sewing": "slow"}}, "s.toml")
