@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -60,7 +60,9 @@ class Simulator:
     patches / materials: one material per patch. pins: groups of global control-point
     indices. gravity (3,) m/s^2; pressure in Pa along pressure_directions[k] for patch k.
     mode "dynamic" (implicit Euler) or "quasistatic" (static equilibrium per step; pins
-    move by velocity * dt per step).
+    move by velocity * dt per step). seams: sim.seams.SeamSpec, held with seam_stiffness
+    (N/m^2, one per seam or one for all), which ramps up over seam_ramp s (the sewing
+    pre-roll), with velocities dropped after each of those steps if quasistatic_sewing.
     """
 
     def __init__(
@@ -78,7 +80,7 @@ class Simulator:
         contact=None,
         obstacles=(),
         seams=(),
-        seam_stiffness: float = 1e6,
+        seam_stiffness: float | Sequence[float] = 1e6,
         seam_ramp: float = 0.0,
         quasistatic_sewing: bool = False,
     ):
@@ -136,10 +138,13 @@ class Simulator:
         self.seam = None
         if self.seams:
             samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, self._rest_points())
-            self.seam = SeamEnergy(samples, seam_stiffness)
+            # One stiffness per seam (a scalar: all alike), spread over its samples.
+            k = np.broadcast_to(np.asarray(seam_stiffness, float), (len(self.seams),))
+            per_sample = np.repeat(k, [len(s.uv_a) for s in self.seams])
+            self.seam = SeamEnergy(samples, per_sample)
             self.energies.append(self.seam)
         self.seam_ramp = float(seam_ramp)
-        self.seam_stiffness = float(seam_stiffness)
+        self.seam_stiffness = float(np.max(seam_stiffness))  # the ramp's end
         self.quasistatic_sewing = bool(quasistatic_sewing)
         if self.seam is not None and self.seam_ramp > 0.0:
             self.seam.set_scale(self._seam_scale(self.dt))
@@ -253,7 +258,7 @@ class Simulator:
                 materials.append(g.material)
                 directions.append(np.array([0.0, 0.0, 1.0]))
             seams += [SeamSpec(name[s.patch_a], s.uv_a, name[s.patch_b], s.uv_b, s.name) for s in ps.seams]
-            stiffness.append(g.seam_stiffness)
+            stiffness += [g.seam_stiffness] * len(ps.seams)
         tm = scene.time
         opts = newton or NewtonOptions()
         opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
@@ -267,7 +272,7 @@ class Simulator:
         sim = cls(
             patches, materials, groups, load.gravity, load.pressure,
             directions, tm.dt, tm.mode, opts, None if scene.garments else scene.output.mesh_resolution,
-            scene.contact, obstacles, seams, max(stiffness, default=1e6), sewn, tm.sewing == "quasistatic",
+            scene.contact, obstacles, seams, stiffness or 1e6, sewn, tm.sewing == "quasistatic",
         )
         for c, piece in zip(scene.cloths, sim.pieces):
             sim.V[piece.slice] = np.asarray(c.velocity, float)

@@ -107,3 +107,19 @@ def test_inspect_render_cli(tmp_path):
     assert main(["inspect", str(rrd), "--render", str(tmp_path / "frames"), "--render-size", "96x72", "-q"]) == 0
     pngs = sorted((tmp_path / "frames").iterdir())
     assert len(pngs) == 5 and foreground(iio.imread(pngs[-1])).mean() > 0.05
+
+
+def test_up_axis_stands_a_y_up_scene_upright(tmp_path):
+    """A tall thin post along +y: upright (taller than wide) with up = y, lying with z up."""
+    post_x = np.array([[x, y, z] for x in (-0.05, 0.05) for y in (0.0, 1.0) for z in (-0.05, 0.05)])
+    post_f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                       [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    meshes = [MeshTopology("post", post_f, EMPTY, EMPTY, kind="body")]
+    frames = [(0, 0.0, {"post": post_x})]
+    aspect = {}
+    for up in ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+        out = tmp_path / f"up{up[1]:.0f}"
+        render(meshes, frames, out, RenderOptions(size=SIZE, up=up))
+        rows, cols = np.nonzero(foreground(iio.imread(next(out.iterdir()))[..., :3]))
+        aspect[up[1]] = (np.ptp(rows) + 1) / (np.ptp(cols) + 1)
+    assert aspect[1.0] > 3.0 and aspect[0.0] < 1.0

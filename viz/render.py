@@ -45,9 +45,10 @@ FrameData = tuple[int, float, dict[str, np.ndarray]]
 class RenderOptions:
     """size: (width, height) in pixels (rounded up to even numbers for H.264).
     fps: frames per second of a video. orbit: turn the camera once around the vertical
-    (z) axis over the video instead of keeping it fixed. azimuth / elevation: view
-    direction in degrees (azimuth from +x towards +y; the camera goes to the side the
-    cloth's front faces). zoom: > 1 moves closer."""
+    axis over the video instead of keeping it fixed. azimuth / elevation: view direction
+    in degrees (azimuth from +x towards +y when z is up; the camera goes to the side the
+    cloth's front faces). zoom: > 1 moves closer. up: the scene's vertical (None: +z;
+    `garment simulate` passes the direction against gravity, so Y-up scenes stand)."""
 
     size: tuple[int, int] = (640, 480)
     fps: float = 30.0
@@ -55,6 +56,7 @@ class RenderOptions:
     azimuth: float = -60.0
     elevation: float = 20.0
     zoom: float = 1.0
+    up: tuple[float, float, float] | None = None
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -117,9 +119,20 @@ def scene_bounds(frames: Iterable[FrameData]) -> np.ndarray:
     return np.array([lo, hi])
 
 
-def _direction(azimuth: float, elevation: float) -> np.ndarray:
+def _direction(azimuth: float, elevation: float, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """Unit view direction; azimuth turns about `up` from the horizontal axis nearest +x
+    (towards +y when up is +z)."""
     a, e = math.radians(azimuth), math.radians(elevation)
-    return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+    e1, e2, u = _horizontal_basis(up)
+    return math.cos(e) * (math.cos(a) * e1 + math.sin(a) * e2) + math.sin(e) * u
+
+
+def _horizontal_basis(up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    u = np.asarray(up, float) / np.linalg.norm(up)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = ref - (ref @ u) * u
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(u, e1), u
 
 
 class SceneRenderer:
@@ -133,6 +146,7 @@ class SceneRenderer:
         import pyvista as pv
 
         self.options = options
+        self.up = _horizontal_basis(options.up if options.up is not None else (0.0, 0.0, 1.0))[2]
         w, h = options.size
         self.size = (w + w % 2, h + h % 2)  # libx264/yuv420p needs even sides
         self.plotter = pv.Plotter(off_screen=True, window_size=self.size)
@@ -169,8 +183,9 @@ class SceneRenderer:
             if m.kind == "cloth" and m.name in first:
                 tri = np.asarray(first[m.name], float)[np.asarray(m.faces)]
                 total += np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).sum(axis=0)
-        d = _direction(self.options.azimuth, 0.0)
-        return self.options.azimuth + 180.0 if total[:2] @ d[:2] < 0 else self.options.azimuth
+        d = _direction(self.options.azimuth, 0.0, self.up)
+        horizontal = total - (total @ self.up) * self.up
+        return self.options.azimuth + 180.0 if horizontal @ d < 0 else self.options.azimuth
 
     def _fit_distance(self, turn: float, margin: float = 1.08) -> float:
         """Camera distance (m) from the box centre at which all 8 corners of the scene's
@@ -187,18 +202,18 @@ class SceneRenderer:
     def _frame(self, turn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unit vectors: towards the camera, screen right, screen up."""
         # Clamped: looking straight down leaves "screen right" undefined.
-        d = _direction(self.azimuth + 360.0 * turn, float(np.clip(self.options.elevation, -89.0, 89.0)))
-        right = np.cross([0.0, 0.0, 1.0], d)
+        d = _direction(self.azimuth + 360.0 * turn, float(np.clip(self.options.elevation, -89.0, 89.0)), self.up)
+        right = np.cross(self.up, d)
         right /= np.linalg.norm(right)
         return d, right, np.cross(d, right)
 
     def set_camera(self, turn: float = 0.0) -> None:
-        """Camera at the fitting distance, z up; `turn` in [0, 1) of a full orbit."""
+        """Camera at the fitting distance, `up` up; `turn` in [0, 1) of a full orbit."""
         d = self._frame(turn)[0]
         cam = self.plotter.camera
         cam.focal_point = tuple(self.center)
         cam.position = tuple(self.center + self.distance * d)
-        cam.up = (0.0, 0.0, 1.0)
+        cam.up = tuple(self.up)
         cam.view_angle = self.VIEW_ANGLE
         self.plotter.reset_camera_clipping_range()
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from garment.errors import InputError
 
 from .console import err, print_table
-from .simulate import add_render_options, render_frames
+from .simulate import UP_VECTORS, add_render_options, render_frames
 
 
 def run(args) -> int:
@@ -73,7 +73,8 @@ def render_recording(rec, args) -> None:
 
     try:
         output_kind(args.render)
-        options = RenderOptions(size=parse_size(args.render_size), fps=args.fps, orbit=args.orbit)
+        options = RenderOptions(size=parse_size(args.render_size), fps=args.fps, orbit=args.orbit,
+                                up=UP_VECTORS.get(args.up))
     except ValueError as e:
         raise InputError(str(e)) from None
     if not rec.frames:

@@ -14,6 +14,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 from rich.markup import escape
 
 from garment.errors import InputError, Interrupted
@@ -117,7 +118,7 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
         if result.stopped:
             raise Interrupted(stopped_message(result.last_frame, tm.frames, checkpoint, [rrd, mesh_dir]))
         if frames is not None:
-            render_frames(frames.meshes, frames.frames(), render_to, render_options, quiet)
+            render_frames(frames.meshes, frames.frames(), render_to, _upright(render_options, scene), quiet)
         if rerun_sink is not None and serve is not None:
             serve_until_interrupted(rerun_sink, quiet)
     finally:
@@ -220,6 +221,17 @@ def _check_render_target(out: Path) -> None:
         raise InputError(str(e)) from None
 
 
+def _upright(options, scene: Scene):
+    """Render options with the scene's vertical (against gravity) unless given."""
+    from viz.render import RenderOptions
+
+    options = options or RenderOptions()
+    g = np.asarray(scene.load.gravity, float)
+    if options.up is None and np.linalg.norm(g) > 0:
+        options = dataclasses.replace(options, up=tuple(-g / np.linalg.norm(g)))
+    return options
+
+
 def render_frames(meshes, frames, out: Path, options, quiet: bool) -> None:
     """Render frames with PyVista off-screen, with a progress bar; prints the cost."""
     from viz.render import RenderOptions, render
@@ -291,7 +303,7 @@ def run(args) -> int:
             raise InputError(f"--render-size: {e}") from None
         if not args.fps > 0:
             raise InputError(f"--fps: must be > 0, got {args.fps}")
-        options = RenderOptions(size=size, fps=args.fps, orbit=args.orbit)
+        options = RenderOptions(size=size, fps=args.fps, orbit=args.orbit, up=UP_VECTORS.get(args.up))
     if args.checkpoint_every < 0:
         raise InputError(f"--checkpoint-every: must be >= 0, got {args.checkpoint_every}")
     if not 0 <= args.max_splits <= 30:
@@ -311,6 +323,11 @@ def add_render_options(p) -> None:
     p.add_argument("--render-size", default="640x480", metavar="WxH", help="image size in pixels (640x480)")
     p.add_argument("--orbit", action="store_true", help="orbit the camera once around the scene")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (30)")
+    p.add_argument("--up", choices=tuple(UP_VECTORS), help="the vertical of the picture "
+                   "(simulate: against the scene's gravity; inspect: z)")
+
+
+UP_VECTORS = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0)}
 
 
 def register(sub) -> None:

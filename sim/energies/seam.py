@@ -36,11 +36,15 @@ class SeamSamples:
 
 
 class SeamEnergy(QuadraticEnergy):
-    def __init__(self, samples: SeamSamples, stiffness: float):
+    """stiffness: k in N/m^2, one for all samples or one per sample (S,) (garments sewn
+    with different seams)."""
+
+    def __init__(self, samples: SeamSamples, stiffness):
         self.samples = samples
         D = (samples.Na - samples.Nb).tocsr()
         self.D = D
-        self.K0 = (stiffness * (D.T @ sp.diags(samples.weights) @ D)).tocsr()
+        k = np.broadcast_to(np.asarray(stiffness, float), samples.weights.shape)
+        self.K0 = (D.T @ sp.diags(k * samples.weights) @ D).tocsr()
         self.K = self.K0
         self.scale = 1.0
 

@@ -1,0 +1,95 @@
+"""Several garments in one scene: two bibs, one over the other, sewn over a ball with their
+own seam stiffnesses, checked every step with the independent intersection test
+(tests/intersections.py) between the garments, within each, and against the ball."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from garment.scene import parse_scene
+from sim.simulator import Simulator
+from tests.intersections import intersecting_triangles
+
+SPACING = 0.02
+SEAM_BAND = 0.04  # m: contact is off within 2.5 mesh spacings (~3.3 cm here) of a seam (sim/seams.py)
+
+
+def _bib(path: Path, width: float, height: float, plane: float, top: float) -> Path:
+    """A panel OBJ (garment/io/panels.py): two width x height panels at y = +-plane whose
+    top edges (z = top) are sewn together outside a central neck opening."""
+    nx, nz = round(width / SPACING) + 1, round(height / SPACING) + 1
+    s, t = np.meshgrid(np.linspace(0, width, nx), np.linspace(0, height, nz), indexing="ij")
+    flat = np.c_[s.ravel(), t.ravel()]
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(nz - 1), indexing="ij")
+    v = (i * nz + j).ravel()
+    tris = np.r_[np.c_[v, v + nz, v + nz + 1], np.c_[v, v + nz + 1, v + 1]]
+    n, lines = len(flat), []
+    for y in (plane, -plane):
+        lines += [f"v {x - width / 2:.6f} {y:.6f} {top - height + z:.6f}" for x, z in flat]
+    lines += [f"vt {x:.6f} {z:.6f}" for _ in range(2) for x, z in flat]
+    for k, name in enumerate(("front", "back")):
+        lines.append(f"g {name}")
+        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in tris + 1 + k * n]
+    top_ids = np.arange(nx) * nz + nz - 1
+    x = flat[top_ids, 0] - width / 2
+    for side in (x <= -0.05, x >= 0.05):
+        lines.append(f"seam {side.sum()}")
+        lines += [f"stitch {a} {a + n} {a + n} 0" for a in top_ids[side]]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
+    inner = _bib(tmp_path / "inner.obj", 0.24, 0.16, 0.12, 0.13)
+    outer = _bib(tmp_path / "outer.obj", 0.30, 0.18, 0.15, 0.16)
+    doc = {
+        "garment": [{"name": "inner", "source": str(inner), "knot_span_mm": 40, "seam_stiffness": 1e6},
+                    {"name": "outer", "source": str(outer), "knot_span_mm": 40, "seam_stiffness": 2e5}],
+        "obstacle": [{"name": "ball", "sphere": {"radius": 0.1, "subdivisions": 3}}],
+        "contact": {"dhat": 1e-3, "kappa": "adaptive", "mu": 0.2},
+        "time": {"dt": 0.01, "frames": 30, "preroll": 0.2},
+    }
+    sim = Simulator.from_scene(parse_scene(doc, tmp_path / "bibs.toml"))
+    names = [p.name for p in sim.pieces]
+    assert names == ["inner.front", "inner.back", "outer.front", "outer.back"]
+
+    # Each garment's seams carry its own stiffness: k = 2 E / sum w gap^2 per garment.
+    seam = sim.seam
+    inner_rows = np.repeat([s.piece_a.startswith("inner") for s in sim.seams], [len(s.uv_a) for s in sim.seams])
+    D, w = seam.D.toarray(), seam.samples.weights
+    C = np.random.default_rng(0).normal(size=sim.C.shape)
+    for rows, k in ((inner_rows, 1e6), (~inner_rows, 2e5)):
+        gap2 = ((D[rows] @ C) ** 2).sum(axis=1)
+        K_part = sp.csr_matrix(D[rows]).T @ sp.diags(k * w[rows]) @ sp.csr_matrix(D[rows])
+        assert abs(np.einsum("ij,ij", C, K_part @ C) - k * (w[rows] * gap2).sum()) < 1e-6 * k
+    np.testing.assert_allclose((seam.K0 @ C), (sp.csr_matrix(D).T @ sp.diags(
+        np.where(inner_rows, 1e6, 2e5) * w) @ sp.csr_matrix(D)) @ C, rtol=1e-12, atol=1e-9)
+
+    W = sp.vstack([p.W for p in sim.pieces]).tocsr()
+    faces, garment, offset = [], [], 0
+    for p in sim.pieces:
+        faces.append(p.topology.faces + offset)
+        garment.append(np.full(len(p.topology.faces), p.name.startswith("outer")))
+        offset += p.W.shape[0]
+    F, outer_face = np.concatenate(faces), np.concatenate(garment)
+    ball = sim.obstacles[0]
+    for step in range(30):
+        sim.step()
+        x = W @ sim.C
+        assert np.all(np.isfinite(x)), step
+        assert len(intersecting_triangles(x, F, ball.at(sim.t), ball.faces)) == 0, f"garment-ball, step {step}"
+        pairs = intersecting_triangles(x, F)
+        between = outer_face[pairs[:, 0]] != outer_face[pairs[:, 1]]
+        assert not between.any(), f"inner-outer intersection, step {step}"
+        # Within a garment only the seam lines may touch (panels meet edge to edge there).
+        seam_points = np.r_[sim.seam.samples.Na @ sim.C, sim.seam.samples.Nb @ sim.C]
+        centroid = x[F].mean(axis=1)
+        seam_zone = np.min(np.linalg.norm(centroid[:, None] - seam_points[None], axis=2), axis=1) < SEAM_BAND
+        assert (seam_zone[pairs[:, 0]] & seam_zone[pairs[:, 1]]).all(), f"self-intersection, step {step}"
+    gaps = sim.seam.samples.gaps(sim.C)
+    assert gaps[inner_rows].max() < 1e-3 and gaps[~inner_rows].max() < 1e-3
+    # Both rest on the ball, the outer one on the inner one: both hang below its top.
+    assert (W @ sim.C)[:, 2].max() < 0.16
