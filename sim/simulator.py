@@ -294,6 +294,10 @@ class Simulator:
         piece = self._piece(name)
         return self.C[piece.slice].reshape(*piece.patch.shape, 3)
 
+    def velocities(self, name: str) -> np.ndarray:
+        piece = self._piece(name)
+        return self.V[piece.slice].reshape(*piece.patch.shape, 3)
+
     def positions(self, name: str | None = None) -> np.ndarray | dict[str, np.ndarray]:
         """Embedded mesh vertices (V, 3) of one piece, or a dict of all pieces."""
         if name is None:

@@ -20,6 +20,10 @@ def run(args) -> int:
     if args.case and args.name not in ("compare", "garment"):
         raise SystemExit("--case applies to `garment bench compare` and `garment bench garment` only")
     kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
+    if args.refine:
+        if args.name != "garment":
+            raise SystemExit("--refine applies to `garment bench garment` only")
+        kwargs["refine"] = True
     with progress(args.quiet or args.json) as bar:
         task = bar.add_task(args.name, total=None, status="")
 
@@ -54,6 +58,8 @@ def register(sub) -> None:
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--case", help="compare: comma-separated cases (hanging, drape, shear, sphere, plate, "
                                   "locking, ablation); garment: poncho (default) or dress")
+    b.add_argument("--refine", action="store_true",
+                   help="garment only: sew at the scene's knot span, then refine exactly to --resolution")
     b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(func=run)
