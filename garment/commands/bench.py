@@ -21,9 +21,11 @@ def run(args) -> int:
         raise SystemExit("--case applies to `garment bench compare` and `garment bench garment` only")
     kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
     if args.refine:
+        if args.refine < 0:
+            raise SystemExit("--refine: K must be >= 0")
         if args.name != "garment":
             raise SystemExit("--refine applies to `garment bench garment` only")
-        kwargs["refine"] = True
+        kwargs["refine"] = args.refine
     with progress(args.quiet or args.json) as bar:
         task = bar.add_task(args.name, total=None, status="")
 
@@ -58,8 +60,8 @@ def register(sub) -> None:
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--case", help="compare: comma-separated cases (hanging, drape, shear, sphere, plate, "
                                   "locking, ablation); garment: poncho (default) or dress")
-    b.add_argument("--refine", action="store_true",
-                   help="garment only: sew at the scene's knot span, then refine exactly to --resolution")
+    b.add_argument("--refine", type=int, default=0, metavar="K",
+                   help="garment only: sew at 2^K x the span, then refine exactly K times to it")
     b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(func=run)
