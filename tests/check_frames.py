@@ -8,7 +8,8 @@ triangle pairs, and cloth-cloth pairs. Cloth-cloth pairs with both triangles wit
 `band` mesh spacings (mean edge lengths) of their own panel's boundary are counted apart
 as seam crossings: the simulator switches contact off within 2.5 spacings of a seam
 (sim/seams.py), where panels sewn edge to edge by springs meet by construction. Exits 1
-if any frame has NaN, a cloth-obstacle pair or any other cloth-cloth pair.
+if any frame has NaN, a cloth-obstacle pair or any other cloth-cloth pair. `reach`: how
+far in from the boundary (spacings) the seam crossings go; 0 is the seam line itself.
 """
 
 from __future__ import annotations
@@ -56,17 +57,20 @@ def check_frame(meshes: dict[str, dict], band: float) -> dict:
         b = boundary_vertices(T)
         d, _ = cKDTree(X[b]).query(X)
         spacing = np.linalg.norm(X[T[:, 1]] - X[T[:, 0]], axis=1).mean()
-        near.append((d[T] <= band * spacing).any(axis=1))
+        near.append(d[T].min(axis=1) / spacing)  # triangle-to-boundary distance, spacings
         V.append(X)
         F.append(T + off)
         off += len(X)
-    X, T, near = np.concatenate(V), np.concatenate(F), np.concatenate(near)
+    X, T, reach = np.concatenate(V), np.concatenate(F), np.concatenate(near)
+    near = reach <= band
     finite = bool(np.isfinite(X).all())
     body = sum(len(intersecting_triangles(X, T, o["verts"], o["faces"])) for o in obstacles) if finite else -1
     pairs = intersecting_triangles(X, T) if finite else np.zeros((0, 2), int)
     at_seams = near[pairs[:, 0]] & near[pairs[:, 1]]
+    # How far in from the boundary seam crossings reach: 0 = along the seam line itself.
+    depth = reach[pairs[at_seams]].max(axis=1).max(initial=0.0)
     return {"time": cloth[0]["time"], "finite": finite, "body": body,
-            "self": int((~at_seams).sum()), "seam": int(at_seams.sum())}
+            "self": int((~at_seams).sum()), "seam": int(at_seams.sum()), "seam_depth": float(depth)}
 
 
 def main(argv=None) -> int:
@@ -76,12 +80,13 @@ def main(argv=None) -> int:
                     help="seam band around panel boundaries, in mesh spacings (2.5)")
     args = ap.parse_args(argv)
     bad = 0
-    print(f"{'frame':>5} {'time':>7} {'finite':>6} {'body':>5} {'self':>5} {'seam':>5}")
+    print(f"{'frame':>5} {'time':>7} {'finite':>6} {'body':>5} {'self':>5} {'seam':>5} {'reach':>5}")
     for k, meshes in frames(args.folder).items():
         r = check_frame(meshes, args.band)
         ok = r["finite"] and r["body"] == 0 and r["self"] == 0
         bad += not ok
-        print(f"{k:5d} {r['time']:7.3f} {str(r['finite']):>6} {r['body']:5d} {r['self']:5d} {r['seam']:5d}"
+        print(f"{k:5d} {r['time']:7.3f} {str(r['finite']):>6} {r['body']:5d} {r['self']:5d} {r['seam']:5d} "
+              f"{r['seam_depth']:5.2f}"
               + ("" if ok else "  FAIL"), flush=True)
     print(f"{bad} failing frame(s)")
     return int(bad > 0)
