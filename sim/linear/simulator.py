@@ -141,7 +141,8 @@ class LinearSimulator(Simulator):
         self._elastic_energies(mode, forces, bend_parts, bend_D, membranes)
 
         # No seams between linear cloths (Simulator's seam attributes, switched off).
-        self.seams, self.seam, self.seam_ramp = [], None, 0.0
+        self.seams, self.seam, self.seam_ramp, self.seam_stiffness = [], None, 0.0, 0.0
+        self.quasistatic_sewing = False
 
         self.C0 = np.concatenate([np.asarray(w, float) for w in worlds])
         self._finish(contact, obstacles, materials, gravity)
