@@ -23,7 +23,7 @@ import ipctk
 
 from . import quadrature
 from .contact.drive import BodyDrive
-from .contact.mesh import ContactMesh
+from .contact.mesh import ContactMesh, crossing_pairs
 from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
@@ -224,6 +224,11 @@ class Simulator:
                                       self._rest_points())
         mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact, excluded)
         x0 = mesh.vertices(C0)
+        if self.keep_crossings and ipctk.has_intersections(mesh.mesh, x0):
+            # A state handed over from a coarser run (garment bench garment --refine): its
+            # seam-band crossings lie outside this finer mesh's seam bands; leave them be.
+            excluded |= crossing_pairs(mesh.mesh, x0, mesh.n_cloth)
+            mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact, excluded)
         if ipctk.has_intersections(mesh.mesh, x0):
             raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
         barrier = BarrierEnergy(mesh, contact.dhat, contact.kappa)
@@ -335,6 +340,9 @@ class Simulator:
     # them over the pre-roll, and the rising stiffness then holds them below 1 mm. The start
     # is absolute, not a fraction of k: it is what grams of cloth across open gaps can take.
     SEAM_RAMP_START = 10.0
+    # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
+    # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
+    keep_crossings = False
 
     def _seam_scale(self, t: float) -> float:
         start = min(self.SEAM_RAMP_START / self.seam_stiffness, 1.0)

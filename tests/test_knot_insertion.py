@@ -63,3 +63,34 @@ def test_a_sewn_garment_continues_exactly_at_half_the_span(tmp_path):
             assert np.abs(_surface(X, u.ravel(), v.ravel()) - _surface(Y, 2 * u.ravel(), 2 * v.ravel())).max() < 1e-12
     np.testing.assert_allclose(fine.seam.samples.gaps(fine.C), coarse.seam.samples.gaps(coarse.C), atol=1e-12)
     assert fine.step().converged
+
+
+def test_only_a_handed_over_state_may_start_with_crossings():
+    import pytest
+
+    from garment.errors import InputError
+    from garment.materials import PRESETS
+    from garment.model import Patch
+    from garment.scene import ContactSpec
+    from sim.contact.mesh import crossing_pairs
+
+    def crossed(cls):
+        a = Patch.rectangle("a", (0.2, 0.2), (6, 6), (-0.1, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
+        b = Patch.rectangle("b", (0.2, 0.2), (6, 6), (-0.1, 0.0, -0.1), (1, 0, 0), (0, 0, 1))  # through a
+        return cls([a, b], [PRESETS["cotton"]] * 2, contact=ContactSpec(enabled=True, adaptive_kappa=True))
+
+    with pytest.raises(InputError, match="intersects"):
+        crossed(Simulator)
+
+    class HandedOver(Simulator):
+        keep_crossings = True
+
+    sim = crossed(HandedOver)
+    mesh = sim.barrier.contact
+    x = mesh.vertices(sim.C)
+    n_a = sim.pieces[0].W.shape[0]
+    pairs = crossing_pairs(mesh.mesh, x, mesh.n_cloth)
+    assert pairs and all(i < n_a <= j for i, j in pairs)  # only a-b pairs, where the sheets cross
+    separate = np.array(x)
+    separate[n_a:, 2] += 1.0  # lift b clear of a: nothing crosses
+    assert crossing_pairs(mesh.mesh, separate, mesh.n_cloth) == set()

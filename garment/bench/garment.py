@@ -72,6 +72,10 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
     return cases
 
 
+class _HandedOver(Simulator):
+    keep_crossings = True  # the coarse run's seam-band crossings reach past the fine bands
+
+
 def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     """A simulator of the scene's garments refined `levels` times, continuing from the
     state of `sim` (same surfaces, velocities, time, bodies and barrier stiffness)."""
@@ -89,7 +93,7 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
         C += [p.world.reshape(-1, 3) for p in fine.patches]
         V += [refine_net(sim.velocities(full), levels).reshape(-1, 3) for full in names]
         garments.append(dataclasses.replace(g, source=save_patchset(folder / f"{g.name}.json", fine)))
-    fine_sim = Simulator.from_scene(dataclasses.replace(scene, garments=garments))
+    fine_sim = _HandedOver.from_scene(dataclasses.replace(scene, garments=garments))
     state = capture(sim)
     state.C, state.V = np.concatenate(C), np.concatenate(V)
     restore(fine_sim, state)

@@ -77,3 +77,18 @@ class ContactMesh:
     def obstacle_part(self, v: np.ndarray) -> np.ndarray:
         """(Vo, 3) obstacle-vertex rows of a per-DOF vector (3 V,)."""
         return v[3 * self.n_cloth:].reshape(-1, 3)
+
+
+def crossing_pairs(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int) -> set[tuple[int, int]]:
+    """Cloth vertex pairs (i < j) of every cloth edge that passes through a cloth triangle
+    at positions x (V, 3): the edge's two vertices against the triangle's three."""
+    broad = ipctk.LBVH()
+    broad.build(np.asfortranarray(x), np.asfortranarray(mesh.edges), np.asfortranarray(mesh.faces), 0.0)
+    pairs: set[tuple[int, int]] = set()
+    for c in broad.detect_edge_face_candidates():
+        e, f = mesh.edges[c.edge_id], mesh.faces[c.face_id]
+        if e.max() >= n_cloth or f.max() >= n_cloth or set(e) & set(f):
+            continue
+        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+            pairs.update((min(a, b), max(a, b)) for a in e.tolist() for b in f.tolist())
+    return pairs
