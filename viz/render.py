@@ -128,6 +128,7 @@ def _direction(azimuth: float, elevation: float, up=(0.0, 0.0, 1.0)) -> np.ndarr
 
 
 def _horizontal_basis(up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Right-handed orthonormal (e1, e2, up): e1 the horizontal direction nearest +x."""
     u = np.asarray(up, float) / np.linalg.norm(up)
     ref = np.array([1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     e1 = ref - (ref @ u) * u

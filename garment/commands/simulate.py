@@ -221,6 +221,9 @@ def _check_render_target(out: Path) -> None:
         raise InputError(str(e)) from None
 
 
+UP_VECTORS = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0)}  # --up
+
+
 def _upright(options, scene: Scene):
     """Render options with the scene's vertical (against gravity) unless given."""
     from viz.render import RenderOptions
@@ -325,9 +328,6 @@ def add_render_options(p) -> None:
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (30)")
     p.add_argument("--up", choices=tuple(UP_VECTORS), help="the vertical of the picture "
                    "(simulate: against the scene's gravity; inspect: z)")
-
-
-UP_VECTORS = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0)}
 
 
 def register(sub) -> None:
