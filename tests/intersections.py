@@ -9,6 +9,19 @@ skipped (adjacent triangles of one mesh touch by construction).
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+
+
+def stacked_cloth(pieces) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
+    """A simulator's cloth pieces as one mesh: vertices W @ C, faces F, and the index of
+    each face's piece (geometry read off the pieces, no simulator code)."""
+    W = sp.vstack([p.W for p in pieces]).tocsr()
+    faces, piece, offset = [], [], 0
+    for k, p in enumerate(pieces):
+        faces.append(p.topology.faces + offset)
+        piece.append(np.full(len(p.topology.faces), k))
+        offset += p.W.shape[0]
+    return W, np.concatenate(faces), np.concatenate(piece)
 
 
 def _segments_hit_triangles(p, q, a, b, c, eps=1e-14):

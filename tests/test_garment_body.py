@@ -10,11 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 from garment.scene import load_scene
 from sim.simulator import Simulator
-from tests.intersections import intersecting_triangles
+from tests.intersections import intersecting_triangles, stacked_cloth
 
 SCENE = Path(__file__).resolve().parents[1] / "assets" / "scenes" / "poncho_rumba.toml"
 SEAM_BAND = 0.03  # m: cloth triangles this close to a seam point meet across it by design
@@ -25,13 +24,7 @@ def test_poncho_sews_onto_the_dancing_body_without_intersections():
     scene = load_scene(SCENE)
     frames = 12  # 0.3 s pre-roll + 0.18 s of the dance
     sim = Simulator.from_scene(dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=frames)))
-    W = sp.vstack([p.W for p in sim.pieces]).tocsr()
-    faces, owner, offset = [], [], 0
-    for k, p in enumerate(sim.pieces):
-        faces.append(p.topology.faces + offset)
-        owner.append(np.full(len(p.topology.faces), k))
-        offset += p.W.shape[0]
-    F, owner = np.concatenate(faces), np.concatenate(owner)
+    W, F, _ = stacked_cloth(sim.pieces)
     body = sim.obstacles[0]
     gaps = []
     for frame in range(frames):

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from garment.scene import parse_scene
 from sim.simulator import Simulator
-from tests.intersections import intersecting_triangles
+from tests.intersections import intersecting_triangles, stacked_cloth
 
 SPACING = 0.02
 SEAM_BAND = 0.04  # m: contact is off within 2.5 mesh spacings (~3.3 cm here) of a seam (sim/seams.py)
@@ -68,13 +68,8 @@ def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
     np.testing.assert_allclose((seam.K0 @ C), (sp.csr_matrix(D).T @ sp.diags(
         np.where(inner_rows, 1e6, 2e5) * w) @ sp.csr_matrix(D)) @ C, rtol=1e-12, atol=1e-9)
 
-    W = sp.vstack([p.W for p in sim.pieces]).tocsr()
-    faces, garment, offset = [], [], 0
-    for p in sim.pieces:
-        faces.append(p.topology.faces + offset)
-        garment.append(np.full(len(p.topology.faces), p.name.startswith("outer")))
-        offset += p.W.shape[0]
-    F, outer_face = np.concatenate(faces), np.concatenate(garment)
+    W, F, piece = stacked_cloth(sim.pieces)
+    outer_face = np.array([p.name.startswith("outer") for p in sim.pieces])[piece]
     ball = sim.obstacles[0]
     for step in range(30):
         sim.step()
