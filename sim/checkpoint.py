@@ -4,8 +4,8 @@ on disk (checkpoints to resume a run bit-for-bit).
 A Simulator's model is rebuilt from its scene; what changes over a run is small:
 control points C and velocities V, time t, the step counter, the current time step, the
 obstacle vertices (bodies lag behind their targets when cloth blocks them), the barrier
-stiffness kappa and the adaptive-stiffness memory (floor, last distance), and Newton's
-projection back-off. Everything else is rebuilt at every step start (inertia target,
+stiffness kappa and the adaptive-stiffness memory (floor, last distance), the seams'
+multipliers, and Newton's projection back-off. Everything else is rebuilt at every step start (inertia target,
 friction's lagged contacts from C, body targets from t), so restoring these fields makes
 the following steps identical to an uninterrupted run (same thread count).
 
@@ -25,7 +25,7 @@ import numpy as np
 
 from garment.errors import InputError
 
-FORMAT = 1  # bump when the set of fields changes
+FORMAT = 2  # bump when the set of fields changes
 
 
 @dataclass
@@ -43,6 +43,7 @@ class SimState:
     stiffness_floor: float | None = None
     stiffness_prev_d: float | None = None
     projection_backoff: tuple[int, int] = (0, 1)
+    seam_multipliers: np.ndarray | None = None  # (S, 3) N/m, with seams only
 
 
 def capture(sim) -> SimState:
@@ -57,6 +58,8 @@ def capture(sim) -> SimState:
     if sim.stiffness is not None:
         s.stiffness_floor = float(sim.stiffness.floor)
         s.stiffness_prev_d = float(sim.stiffness._prev_d)
+    if sim.seam is not None:
+        s.seam_multipliers = sim.seam.multipliers.copy()
     return s
 
 
@@ -80,6 +83,8 @@ def restore(sim, s: SimState) -> None:
     if sim.stiffness is not None and s.stiffness_floor is not None:
         sim.stiffness.floor = s.stiffness_floor
         sim.stiffness._prev_d = s.stiffness_prev_d
+    if sim.seam is not None and s.seam_multipliers is not None:
+        sim.seam.multipliers = s.seam_multipliers.copy()
 
 
 # --------------------------------------------------------------------------- on disk
@@ -114,7 +119,8 @@ def write_checkpoint(path: str | os.PathLike, sim, frame: int, scene_hash: str,
         "C": s.C, "V": s.V, "t": np.float64(s.t), "step_count": np.int64(s.step_count), "dt": np.float64(s.dt),
         "projection_backoff": np.asarray(s.projection_backoff, np.int64),
     }
-    for name in ("obstacle_vertices", "drive_target", "kappa", "stiffness_floor", "stiffness_prev_d"):
+    for name in ("obstacle_vertices", "drive_target", "kappa", "stiffness_floor", "stiffness_prev_d",
+                 "seam_multipliers"):
         value = getattr(s, name)
         if value is not None:
             arrays[name] = np.asarray(value, np.float64)
@@ -140,7 +146,7 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
         with np.load(path, allow_pickle=False) as d:
             if int(d["format"]) != FORMAT:
                 raise InputError(f"{path}: checkpoint format {int(d['format'])}, this version reads {FORMAT}")
-            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target") if k in d.files}
+            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target", "seam_multipliers") if k in d.files}
             num = {k: float(d[k]) for k in ("kappa", "stiffness_floor", "stiffness_prev_d") if k in d.files}
             state = SimState(d["C"].copy(), d["V"].copy(), float(d["t"]), int(d["step_count"]), float(d["dt"]),
                              projection_backoff=tuple(int(x) for x in d["projection_backoff"]),

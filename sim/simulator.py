@@ -62,7 +62,8 @@ class Simulator:
     mode "dynamic" (implicit Euler) or "quasistatic" (static equilibrium per step; pins
     move by velocity * dt per step). seams: sim.seams.SeamSpec, held with seam_stiffness
     (N/m^2, one per seam or one for all), which ramps up over seam_ramp s (the sewing
-    pre-roll), with velocities dropped after each of those steps if quasistatic_sewing.
+    pre-roll), with velocities dropped after each of those steps if quasistatic_sewing;
+    once sewn, seam_multipliers close the gaps that a penalty leaves (sim/energies/seam.py).
     """
 
     def __init__(
@@ -83,6 +84,7 @@ class Simulator:
         seam_stiffness: float | Sequence[float] = 1e6,
         seam_ramp: float = 0.0,
         quasistatic_sewing: bool = False,
+        seam_multipliers: bool = True,
     ):
         self.dt = float(dt)
         self.mode = mode
@@ -146,6 +148,7 @@ class Simulator:
         self.seam_ramp = float(seam_ramp)
         self.seam_stiffness = float(np.max(seam_stiffness))  # the ramp's end
         self.quasistatic_sewing = bool(quasistatic_sewing)
+        self.seam_multipliers = bool(seam_multipliers)
         if self.seam is not None and self.seam_ramp > 0.0:
             self.seam.set_scale(self._seam_scale(self.dt))
 
@@ -381,6 +384,8 @@ class Simulator:
         C_new = minimize(self.potential, x0, self.newton, stats)
         if self.seam is not None:
             stats.extra["seam_gap_max"] = float(self.seam.samples.gaps(C_new).max(initial=0.0))
+            if self.seam_multipliers and self.seam.scale >= 1.0:
+                self.seam.update_multipliers(C_new)
         if self.barrier is not None:
             stats.extra["contact_count"] = float(self.barrier.n_collisions)
             stats.extra["min_distance"] = self.barrier.min_distance(C_new)

@@ -91,3 +91,78 @@ def test_scene_sewing_mode_is_checked():
     assert parse_scene(cloth, "s.toml").time.sewing == "dynamic"
     with pytest.raises(InputError, match="s.toml.*sewing"):
         parse_scene({**cloth, "time": {"sewing": "slow"}}, "s.toml")
+
+
+def test_seam_multipliers_derivatives_match_finite_differences():
+    sim = _two_panels(0.02)
+    seam = sim.seam
+    rng = np.random.default_rng(3)
+    seam.multipliers = rng.normal(scale=50.0, size=seam.multipliers.shape)  # N/m
+    C = sim.C + rng.normal(scale=1e-3, size=sim.C.shape)
+
+    def grad(X):
+        g = np.zeros_like(X)
+        seam.add_gradient(X, g)
+        return g
+
+    eps = 1e-6
+    fd = np.zeros_like(C)
+    for i in range(C.shape[0]):
+        for d in range(3):
+            Cp, Cm = C.copy(), C.copy()
+            Cp[i, d] += eps
+            Cm[i, d] -= eps
+            fd[i, d] = (seam.value(Cp) - seam.value(Cm)) / (2 * eps)
+    g = grad(C)
+    assert np.abs(fd - g).max() < 1e-6 * np.abs(g).max()
+    for _ in range(3):  # the multipliers add nothing to the (constant) Hessian K (x) I3
+        dC = rng.normal(size=C.shape)
+        fd_dir = (grad(C + eps * dC) - grad(C - eps * dC)) / (2 * eps)
+        assert np.abs(fd_dir - seam.K @ dC).max() < 1e-6 * np.abs(seam.K @ dC).max()
+
+
+def _eased(multipliers: bool) -> Simulator:
+    """Two panels whose seam is eased: b's side is 20 % shorter than a's."""
+    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
+    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (0.0, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
+    t = np.linspace(0.0, N - 2.0, 30)
+    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), 0.8 * t])
+    return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, 0.0), dt=0.01,
+                     seams=[seam], seam_stiffness=1e5, seam_multipliers=multipliers)
+
+
+def _late_gaps(sim: Simulator) -> list[float]:
+    """Largest seam gap after each of steps 11-20 (all converged)."""
+    for _ in range(10):
+        sim.step()
+    out = []
+    for _ in range(10):
+        assert sim.step().converged
+        out.append(sim.seam.samples.gaps(sim.C).max())
+    return out
+
+
+def test_multipliers_close_an_eased_seam_that_a_penalty_leaves_open():
+    penalty, held = _eased(False), _eased(True)
+    open_, closed = _late_gaps(penalty), _late_gaps(held)
+    # The penalty settles at force / k (0.69 mm); the multipliers take up that force and
+    # the gap falls towards zero (measured: 10-40 um, the compressed cloth's jitter).
+    assert min(open_) > 5e-4
+    assert max(closed) < 0.1 * min(open_)
+    assert np.abs(penalty.seam.multipliers).max() == 0.0
+
+
+def test_checkpoint_carries_the_multipliers(tmp_path):
+    from sim.checkpoint import read_checkpoint, restore, write_checkpoint
+
+    sim = _eased(True)
+    for _ in range(3):
+        sim.step()
+    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim, 3, "eased"))
+    resumed = _eased(True)
+    restore(resumed, ck.state)
+    np.testing.assert_array_equal(resumed.seam.multipliers, sim.seam.multipliers)
+    assert np.abs(sim.seam.multipliers).max() > 0.0
+    sim.step()
+    resumed.step()
+    assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted

@@ -96,5 +96,6 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     fine_sim = _HandedOver.from_scene(dataclasses.replace(scene, garments=garments))
     state = capture(sim)
     state.C, state.V = np.concatenate(C), np.concatenate(V)
+    state.seam_multipliers = None  # other samples at the finer spans: they build up again
     restore(fine_sim, state)
     return fine_sim

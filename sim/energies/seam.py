@@ -9,6 +9,15 @@ length each sample stands for (rest metres), so k is a stiffness per unit seam l
 A penalty rather than welded control points: it works for any pairing of control nets,
 pulls separated panels together during the stitching phase (the gap shrinks as the
 force k w |gap| meets the cloth's resistance), and keeps them closed after.
+
+A penalty alone leaves the gap at force / k, and eased seams need force: a dart whose
+sides differ by 2 mm in 3 cm must squeeze the cloth, and at k = 1e7 N/m^2 the dress_knife
+darts stayed 1.9 mm open. Once sewn, each sample also carries a multiplier lambda_s (N/m,
+the seam's holding force per unit length; augmented Lagrangian, Nocedal & Wright 17.3):
+E += sum_s w_s lambda_s . g_s with g_s = S_a - S_b, and after each step
+lambda_s += k_s g_s. The gradient gains the constant D^T (w lambda), the Hessian nothing,
+and the gap shrinks by K_cloth / (K_cloth + k) per step towards zero rather than to
+force / k.
 """
 
 from __future__ import annotations
@@ -46,7 +55,24 @@ class SeamEnergy(QuadraticEnergy):
         k = np.broadcast_to(np.asarray(stiffness, float), samples.weights.shape)
         self.K0 = (D.T @ sp.diags(k * samples.weights) @ D).tocsr()
         self.K = self.K0
+        self.k = k
         self.scale = 1.0
+        self.multipliers = np.zeros((D.shape[0], 3))  # lambda, N/m per sample
+
+    def value(self, C):
+        return super().value(C) + float(np.sum(self._weighted_multipliers() * (self.D @ C)))
+
+    def add_gradient(self, C, out):
+        super().add_gradient(C, out)
+        out += self.D.T @ self._weighted_multipliers()
+
+    def _weighted_multipliers(self) -> np.ndarray:
+        return self.samples.weights[:, None] * self.multipliers
+
+    def update_multipliers(self, C: np.ndarray) -> None:
+        """lambda += k g at the state C that ended a step (full stiffness only: during the
+        ramp the gaps are the sewing's, not the seams' error)."""
+        self.multipliers += self.k[:, None] * (self.D @ C)
 
     def set_scale(self, scale: float) -> None:
         """Stiffness = scale x the full stiffness (a stitching ramp); the caller must
