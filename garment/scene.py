@@ -254,7 +254,9 @@ class ObstacleSpec:
 class ContactSpec:
     """IPC contact: barrier activation distance dhat (m), stiffness kappa (Pa, area-weighted
     barrier; `kappa = "adaptive"` in a scene chooses it per step as IPC does,
-    see sim/contact/stiffness.py), friction mu and eps_v (m/s), cloth self-contact on or off."""
+    see sim/contact/stiffness.py), friction mu and eps_v (m/s), cloth self-contact on or off.
+    seams: "merge" (closed seams share their contact vertices, sim/seam_mesh.py) or "band"
+    (contact off near every seam sample: cheaper, but cloth may cross there)."""
 
     enabled: bool = False
     dhat: float = 1e-3
@@ -263,6 +265,7 @@ class ContactSpec:
     mu: float = 0.0
     eps_v: float = 1e-3
     self_contact: bool = True
+    seams: str = "merge"
 
 
 @dataclass
@@ -391,7 +394,7 @@ _OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate"
 _SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
 _SPHERE_KEYS = ("center", "radius", "subdivisions")
 _PLANE_KEYS = ("point", "normal", "size")
-_CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact")
+_CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact", "seams")
 UP_AXES = ("y", "z")
 SEWING_MODES = ("dynamic", "quasistatic")
 
@@ -636,6 +639,7 @@ def _read_contact(root: _Table, has_obstacles: bool) -> ContactSpec:
             mu=t.number("mu", ge=0),
             eps_v=t.number("eps_v", gt=0),
             self_contact=t.read("self_contact", _as_bool),
+            seams=t.choice("seams", ("merge", "band")),
         )
     )
 

@@ -5,7 +5,8 @@ A Simulator's model is rebuilt from its scene; what changes over a run is small:
 control points C and velocities V, time t, the step counter, the current time step, the
 obstacle vertices (bodies lag behind their targets when cloth blocks them), the barrier
 stiffness kappa and the adaptive-stiffness memory (floor, last distance), the seams'
-multipliers, and Newton's projection back-off. Everything else is rebuilt at every step start (inertia target,
+multipliers and which of their contact vertices are sewn yet, and Newton's projection
+back-off. Everything else is rebuilt at every step start (inertia target,
 friction's lagged contacts from C, body targets from t), so restoring these fields makes
 the following steps identical to an uninterrupted run (same thread count).
 
@@ -44,6 +45,7 @@ class SimState:
     stiffness_prev_d: float | None = None
     projection_backoff: tuple[int, int] = (0, 1)
     seam_multipliers: np.ndarray | None = None  # (S, 3) N/m, with seams only
+    seam_pairs: np.ndarray | None = None  # (P,) seam vertex pairs: 0 open, 1 merged, 2 apart, no contact
 
 
 def capture(sim) -> SimState:
@@ -60,6 +62,7 @@ def capture(sim) -> SimState:
         s.stiffness_prev_d = float(sim.stiffness._prev_d)
     if sim.seam is not None:
         s.seam_multipliers = sim.seam.multipliers.copy()
+        s.seam_pairs = sim.seam_pairs.copy()
     return s
 
 
@@ -85,6 +88,8 @@ def restore(sim, s: SimState) -> None:
         sim.stiffness._prev_d = s.stiffness_prev_d
     if sim.seam is not None and s.seam_multipliers is not None:
         sim.seam.multipliers = s.seam_multipliers.copy()
+    if s.seam_pairs is not None and s.seam_pairs.any():
+        sim._merge_seams(restore=s.seam_pairs)
 
 
 # --------------------------------------------------------------------------- on disk
@@ -120,7 +125,7 @@ def write_checkpoint(path: str | os.PathLike, sim, frame: int, scene_hash: str,
         "projection_backoff": np.asarray(s.projection_backoff, np.int64),
     }
     for name in ("obstacle_vertices", "drive_target", "kappa", "stiffness_floor", "stiffness_prev_d",
-                 "seam_multipliers"):
+                 "seam_multipliers", "seam_pairs"):
         value = getattr(s, name)
         if value is not None:
             arrays[name] = np.asarray(value, np.float64)
@@ -146,7 +151,7 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
         with np.load(path, allow_pickle=False) as d:
             if int(d["format"]) != FORMAT:
                 raise InputError(f"{path}: checkpoint format {int(d['format'])}, this version reads {FORMAT}")
-            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target", "seam_multipliers") if k in d.files}
+            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_pairs") if k in d.files}
             num = {k: float(d[k]) for k in ("kappa", "stiffness_floor", "stiffness_prev_d") if k in d.files}
             state = SimState(d["C"].copy(), d["V"].copy(), float(d["t"]), int(d["step_count"]), float(d["dt"]),
                              projection_backoff=tuple(int(x) for x in d["projection_backoff"]),

@@ -1,11 +1,12 @@
-"""Seams between pieces: matched parameter samples -> seam energy samples, and the
-contact-mesh vertex pairs next to a seam that must never produce a barrier.
+"""Seams between pieces: matched parameter samples -> seam energy samples.
 
 A seam is (piece_a, uv_a (S, 2), piece_b, uv_b (S, 2)): uv_a[s] is sewn to uv_b[s]
-(garment.model.PatchSeam). Once closed, the two cloths meet edge to edge along it, so
-their contact-mesh triangles there touch by construction; the barrier would hold the seam
-open by d_hat. Vertices within `band` contact-mesh spacings of a seam sample are paired
-with those across the seam near the same sample and excluded from contact.
+(garment.model.PatchSeam). Once closed, the two cloths meet edge to edge along it; their
+contact meshes then share the seam's vertices (sim/seam_mesh.py), so the barrier never
+holds a closed seam open. Seams with samples inside a patch (darts whose legs run into
+the panel) have no such vertices: contact-mesh vertices near the same sample of both legs
+are excluded from contact instead (excluded_pairs), which lets the legs meet but also
+lets the cloth right next to them cross.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ import ipctk
 
 from . import quadrature
 from .contact.drive import BodyDrive
-from .contact.mesh import ContactMesh, crossing_pairs
+from .contact.mesh import ContactMesh, crossing_pairs, crossings_at
 from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
@@ -34,6 +34,7 @@ from .newton import NewtonOptions, minimize
 from .pins import PinGroup, select
 from .potential import IncrementalPotential
 from .rest import PointData, point_data
+from .seam_mesh import exclude_all, mean_rows, merged_faces, merged_labels, seam_meshes, vertex_rings
 from .seams import SeamSpec, excluded_pairs, seam_samples
 from .sinks import Frame, MeshTopology, Sink
 from .stats import StepStats
@@ -93,14 +94,36 @@ class Simulator:
         self.pins = list(pins)
         offsets = np.cumsum([0] + [p.n_control_points for p in patches])
         self.n_cp = int(offsets[-1])
+        # Sewn pieces' meshes carry matched vertices along their seams (sim/seam_mesh.py).
+        self.seams = list(seams)
+        resolutions = {p.name: mesh_resolution or default_resolution(*p.shape) for p in patches}
+        if contact is not None and contact.enabled and getattr(contact, "seams", "merge") == "band":
+            sewn_meshes, seam_pairs, self.interior_seams = {}, [], list(self.seams)  # all kept out of contact
+        else:
+            sewn_meshes, seam_pairs, self.interior_seams = seam_meshes(
+                {p.name: p.shape for p in patches}, resolutions, self.seams)
         self.pieces = []
+        vertex_offset = {}
+        n_vertices = 0
         for patch, material, off in zip(patches, materials, offsets):
-            res = mesh_resolution or default_resolution(*patch.shape)
-            u, v = sample_grid(*patch.shape, res)
+            if patch.name in sewn_meshes:
+                uv, faces = sewn_meshes[patch.name]
+                u, v = uv[:, 0], uv[:, 1]
+            else:
+                u, v = sample_grid(*patch.shape, resolutions[patch.name])
+                faces = grid_faces(*resolutions[patch.name])
             W = interpolation_matrix(u, v, *patch.shape, int(off), self.n_cp)
             rest = W[:, off:off + patch.n_control_points] @ patch.rest.reshape(-1, 2)
-            topo = MeshTopology(patch.name, grid_faces(*res), np.c_[u, v], rest)
+            topo = MeshTopology(patch.name, faces, np.c_[u, v], rest)
             self.pieces.append(Piece(patch.name, patch, material, int(off), W, topo))
+            vertex_offset[patch.name] = n_vertices
+            n_vertices += len(u)
+        # Matched seam vertices (global cloth-vertex indices), merged once the seams close.
+        self.seam_vertex_pairs = np.concatenate(
+            [np.c_[va + vertex_offset[a], vb + vertex_offset[b]] for a, va, b, vb in seam_pairs]
+            + [np.zeros((0, 2), np.int64)])
+        # Per pair: 0 open, 1 merged in the contact mesh, 2 kept apart without contact.
+        self.seam_pairs = np.zeros(len(self.seam_vertex_pairs), np.int8)
 
         # Per-point rest data, concatenated over patches.
         membranes: dict[str, list] = {}
@@ -136,7 +159,6 @@ class Simulator:
         self._elastic_energies(mode, forces, bend_parts, bend_D, membranes)
 
         # Seams (sim/seams.py): one stiff quadratic energy over all matched samples.
-        self.seams = list(seams)
         self.seam = None
         if self.seams:
             samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, self._rest_points())
@@ -211,34 +233,143 @@ class Simulator:
 
     def _contact_energy(self, contact) -> BarrierEnergy:
         """IPC barrier on the pieces' embedded meshes and the obstacles."""
-        W = sp.vstack([p.W for p in self.pieces]).tocsr()
+        self._contact_spec = contact
+        self._W_own = sp.vstack([p.W for p in self.pieces]).tocsr()  # each piece on its own surface
+        # Seams closed from the start (panels laid out edge to edge) start sewn.
+        x = self._W_own @ self.C0
+        a, b = self.seam_vertex_pairs.T
+        self.seam_pairs[np.linalg.norm(x[a] - x[b], axis=1) < contact.dhat] = 1
+        self._set_piece_rows()
+        mesh = self._contact_mesh(self.C0, self.seam_pairs)
+        x0 = mesh.vertices(self.C0)
+        if ipctk.has_intersections(mesh.mesh, x0):
+            raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
+        barrier = BarrierEnergy(mesh, contact.dhat, contact.kappa)
+        if len(self.seam_vertex_pairs):
+            sewn = self._contact_mesh(self.C0, np.ones(len(self.seam_vertex_pairs), np.int8))
+            barrier.stencil_meshes = ((sewn.W, sewn.cloth_faces),)
+        d = barrier.min_distance(self.C0)
+        if d <= 0.0:
+            raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
+        return barrier
+
+    def _contact_mesh(self, C, seam_pairs: np.ndarray | None = None) -> ContactMesh:
+        """The cloth pieces' meshes and the obstacles, with the matched seam vertex pairs
+        (sim/seam_mesh.py) in state `seam_pairs` (see _merge_seams) merged, at the mean
+        of both sides, or kept out of contact around each other."""
         faces, offset = [], 0
         for p in self.pieces:
             faces.append(p.topology.faces + offset)
             offset += p.W.shape[0]
+        faces = np.concatenate(faces)
         ids = np.concatenate([np.full(p.W.shape[0], k) for k, p in enumerate(self.pieces)])
-        C0 = self.C0
-        excluded = set()
-        if self.seams:
-            starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
-            excluded = excluded_pairs(self.seams, {p.name: p for p in self.pieces},
-                                      {p.name: int(o) for p, o in zip(self.pieces, starts)},
-                                      {p.name: p.topology.rest for p in self.pieces}, self.n_cp,
-                                      self._rest_points())
-        mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact, excluded)
-        x0 = mesh.vertices(C0)
-        if self.keep_crossings and ipctk.has_intersections(mesh.mesh, x0):
+        excluded = set(self._interior_exclusions())
+        W = self._W_own
+        if seam_pairs is not None and (seam_pairs == 2).any():
+            ring = vertex_rings(faces, offset)
+            for a, b in self.seam_vertex_pairs[seam_pairs == 2]:
+                around = np.union1d(ring[a], ring[b])
+                exclude_all(excluded, around)
+        if seam_pairs is not None and (seam_pairs == 1).any():
+            labels = merged_labels(offset, self.seam_vertex_pairs[seam_pairs == 1])
+            W = (mean_rows(labels) @ W).tocsr()
+            first = np.full(W.shape[0], -1)
+            first[labels[::-1]] = np.arange(offset)[::-1]
+            faces, ids = merged_faces(labels[faces]), ids[first]
+            excluded = {(min(i, j), max(i, j)) for i, j in ((labels[a], labels[b]) for a, b in excluded) if i != j}
+
+        def build(excluded) -> ContactMesh:
+            mesh = ContactMesh(W, faces, W @ C, self.obstacles, ids, self._contact_spec.self_contact, excluded)
+            if self.barrier is not None:  # bodies where they are now; cached contact data expire
+                mesh.move_obstacles(self.barrier.contact.obstacle_vertices.copy())
+                mesh.version = self.barrier.contact.version + 1
+            return mesh
+
+        mesh = build(excluded)
+        x = mesh.vertices(C)
+        if self.keep_crossings and ipctk.has_intersections(mesh.mesh, x):
             # A state handed over from a coarser run (garment bench garment --refine): its
-            # seam-band crossings lie outside this finer mesh's seam bands; leave them be.
-            excluded |= crossing_pairs(mesh.mesh, x0, mesh.n_cloth)
-            mesh = ContactMesh(W, np.concatenate(faces), W @ C0, self.obstacles, ids, contact.self_contact, excluded)
-        if ipctk.has_intersections(mesh.mesh, x0):
-            raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
-        barrier = BarrierEnergy(mesh, contact.dhat, contact.kappa)
-        d = barrier.min_distance(C0)
-        if d <= 0.0:
-            raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
-        return barrier
+            # finer mesh may cross where the coarse one nearly touched; leave those be.
+            mesh = build(excluded | crossing_pairs(mesh.mesh, x, mesh.n_cloth))
+        return mesh
+
+    def _interior_exclusions(self) -> set:
+        """Contact-mesh vertex pairs next to the seams whose samples lie inside a patch
+        (sim/seams.py), in unmerged vertex numbers; computed once."""
+        if not hasattr(self, "_interior_excluded"):
+            self._interior_excluded = set()
+            if self.interior_seams:
+                starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
+                self._interior_excluded = excluded_pairs(
+                    self.interior_seams, {p.name: p for p in self.pieces},
+                    {p.name: int(o) for p, o in zip(self.pieces, starts)},
+                    {p.name: p.topology.rest for p in self.pieces}, self.n_cp, self._rest_points())
+        return self._interior_excluded
+
+    def _merge_seams(self, restore: np.ndarray | None = None) -> int:
+        """Sew the contact mesh shut where the seams have closed: every matched pair of
+        seam vertices within d_hat (the barrier kept it from closing further) becomes one
+        vertex, so the stitched panels share their seam line and stitched neighbours
+        never make a barrier; a zipper, pair by pair, as the seams close. A pair whose
+        merge would move cloth through cloth or body (a dart's or pleat's folded
+        neighbours within d_hat / 2) stays two vertices, and contact is switched off
+        between their neighbourhoods instead (`seam_pairs` 2). `restore`: the
+        `seam_pairs` state to put back (a checkpoint). Returns the pairs newly sewn."""
+        if self.barrier is None or len(self.seam_vertex_pairs) == 0:
+            return 0
+        state = self.seam_pairs.copy()
+        if restore is not None:
+            state = restore.astype(np.int8)
+        else:
+            x = self._W_own @ self.C
+            a, b = self.seam_vertex_pairs.T
+            state[(state == 0) & (np.linalg.norm(x[a] - x[b], axis=1) < self.barrier.dhat)] = 1
+        fresh = state != self.seam_pairs
+        if not fresh.any():
+            return 0
+        old = self.barrier.contact
+        for _ in range(3):
+            mesh = self._contact_mesh(self.C, state)
+            if restore is not None:
+                self._use_contact_mesh(mesh)
+                break
+            x = mesh.vertices(self.C)
+            if not ipctk.has_intersections(mesh.mesh, x):
+                self._use_contact_mesh(mesh)
+                if self.barrier.min_distance(self.C) > 0.0:
+                    break
+                self._use_contact_mesh(old)
+                return 0
+            # Some merged vertex moved through cloth or body: those pairs stay apart.
+            labels = merged_labels(self._W_own.shape[0], self.seam_vertex_pairs[state == 1])
+            first = labels[self.seam_vertex_pairs[:, 0]]
+            crossing = crossings_at(mesh.mesh, x, mesh.n_cloth, first[fresh & (state == 1)])
+            bad = fresh & (state == 1) & np.isin(first, crossing)
+            if not bad.any():
+                return 0
+            state[bad] = 2
+        else:
+            return 0
+        self.seam_pairs = state
+        self._set_piece_rows()
+        return int(fresh.sum())
+
+    def _set_piece_rows(self) -> None:
+        """Exported meshes follow the contact mesh: merged seam vertices take the mean of
+        both sides, so the panels' files share them bit for bit."""
+        labels = merged_labels(self._W_own.shape[0], self.seam_vertex_pairs[self.seam_pairs == 1])
+        rows = (mean_rows(labels) @ self._W_own).tocsr()[labels]
+        start = 0
+        for p in self.pieces:
+            p.W = rows[start:start + p.W.shape[0]]
+            start += p.W.shape[0]
+
+    def _use_contact_mesh(self, mesh: ContactMesh) -> None:
+        self.barrier.contact = mesh
+        self.barrier._C = None
+        self.barrier.bind(self.potential.pattern)
+        if self.drive is not None:
+            self.drive.mesh = mesh
 
     @classmethod
     def from_scene(cls, scene, newton: NewtonOptions | None = None) -> "Simulator":
@@ -359,6 +490,7 @@ class Simulator:
             self.seam.set_scale(self._seam_scale(t_next))
             self.potential.refresh_constant()
         stats = StepStats(step=self.step_count + 1, time=t_next)
+        stats.extra["seam_pairs_sewn"] = float(self._merge_seams())
         targets = self.pin_targets(t_next)
         # Predictor C + dt V: the inertia target in dynamics, the secant (last increment)
         # predictor in quasi-statics (wrinkle 20x47: 41 -> 33 Newton iterations per load step).
@@ -445,3 +577,4 @@ class Simulator:
             frame = Frame(index, self.t, positions, steps)
             for s in sinks:
                 s.write(frame)
+

@@ -11,10 +11,9 @@ import scipy.sparse as sp
 
 from garment.scene import parse_scene
 from sim.simulator import Simulator
-from tests.intersections import intersecting_triangles, stacked_cloth
+from tests.intersections import intersecting_triangles, shared_vertices, stacked_cloth
 
 SPACING = 0.02
-SEAM_BAND = 0.04  # m: contact is off within 2.5 mesh spacings (~3.3 cm here) of a seam (sim/seams.py)
 
 
 def _bib(path: Path, width: float, height: float, plane: float, top: float) -> Path:
@@ -68,22 +67,18 @@ def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
     np.testing.assert_allclose((seam.K0 @ C), (sp.csr_matrix(D).T @ sp.diags(
         np.where(inner_rows, 1e6, 2e5) * w) @ sp.csr_matrix(D)) @ C, rtol=1e-12, atol=1e-9)
 
-    W, F, piece = stacked_cloth(sim.pieces)
-    outer_face = np.array([p.name.startswith("outer") for p in sim.pieces])[piece]
     ball = sim.obstacles[0]
+    merged = []
     for step in range(30):
-        sim.step()
+        merged.append(sim.step().extra["seam_pairs_sewn"])
+        W, F, _ = stacked_cloth(sim.pieces)  # the pieces' seam rows change when the seams merge
         x = W @ sim.C
         assert np.all(np.isfinite(x)), step
         assert len(intersecting_triangles(x, F, ball.at(sim.t), ball.faces)) == 0, f"garment-ball, step {step}"
-        pairs = intersecting_triangles(x, F)
-        between = outer_face[pairs[:, 0]] != outer_face[pairs[:, 1]]
-        assert not between.any(), f"inner-outer intersection, step {step}"
-        # Within a garment only the seam lines may touch (panels meet edge to edge there).
-        seam_points = np.r_[sim.seam.samples.Na @ sim.C, sim.seam.samples.Nb @ sim.C]
-        centroid = x[F].mean(axis=1)
-        seam_zone = np.min(np.linalg.norm(centroid[:, None] - seam_points[None], axis=2), axis=1) < SEAM_BAND
-        assert (seam_zone[pairs[:, 0]] & seam_zone[pairs[:, 1]]).all(), f"self-intersection, step {step}"
+        # Sewn panels share their seam vertices exactly; no other triangle pair may cross.
+        pairs = intersecting_triangles(*shared_vertices(x, F))
+        assert len(pairs) == 0, f"cloth-cloth intersection, step {step}: {len(pairs)} pairs"
+    assert (sim.seam_pairs == 1).all() and sum(merged) == len(sim.seam_pairs)  # sewn shut in the pre-roll
     gaps = sim.seam.samples.gaps(sim.C)
     assert gaps[inner_rows].max() < 1e-3 and gaps[~inner_rows].max() < 1e-3
     # Both rest on the ball, the outer one on the inner one: both hang below its top.

@@ -339,6 +339,7 @@ ERRORS = {
         "'reduced', 'gauss2', 'gauss3'",
     ),
     "unknown mode": (CLOTH + "[time]\nmode = 'static'\n", "time.mode", "'quasistatic'"),
+    "unknown seam contact": (CLOTH + "[contact]\nseams = 'weld'\n", "contact.seams", "'merge', 'band'"),
     "unknown mesh format": (
         CLOTH + "[output]\nmesh_format = 'stl'\n",
         "output.mesh_format",

@@ -15,13 +15,13 @@ from tests.intersections import intersecting_pairs
 N = 8
 
 
-def _two_panels(gap: float, stiffness: float = 1e6) -> Simulator:
+def _two_panels(gap: float, stiffness: float = 1e6, contact=None) -> Simulator:
     a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.2 - gap / 2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
     b = Patch.rectangle("b", (0.2, 0.2), (N, N), (gap / 2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
     t = np.linspace(0.0, N - 2.0, 30)
     seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), t])
     return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
-                     contact=ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam],
+                     contact=contact or ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam],
                      seam_stiffness=stiffness)
 
 

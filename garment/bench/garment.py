@@ -96,6 +96,8 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     fine_sim = _HandedOver.from_scene(dataclasses.replace(scene, garments=garments))
     state = capture(sim)
     state.C, state.V = np.concatenate(C), np.concatenate(V)
-    state.seam_multipliers = None  # other samples at the finer spans: they build up again
+    # Other samples and seam vertices at the finer spans: the multipliers build up again,
+    # the closed seams merge again at the first step.
+    state.seam_multipliers = state.seam_pairs = None
     restore(fine_sim, state)
     return fine_sim

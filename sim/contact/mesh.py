@@ -79,16 +79,34 @@ class ContactMesh:
         return v[3 * self.n_cloth:].reshape(-1, 3)
 
 
+def _crossings(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int):
+    """(edge vertices, triangle vertices) of every edge that passes through a triangle it
+    shares no vertex with, at positions x (V, 3), cloth involved (bodies may cross
+    themselves)."""
+    broad = ipctk.LBVH()
+    broad.build(np.asfortranarray(x), np.asfortranarray(mesh.edges), np.asfortranarray(mesh.faces), 0.0)
+    for c in broad.detect_edge_face_candidates():
+        e, f = mesh.edges[c.edge_id], mesh.faces[c.face_id]
+        if min(e.min(), f.min()) >= n_cloth or set(e) & set(f):
+            continue
+        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+            yield e, f
+
+
 def crossing_pairs(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int) -> set[tuple[int, int]]:
     """Cloth vertex pairs (i < j) of every cloth edge that passes through a cloth triangle
     at positions x (V, 3): the edge's two vertices against the triangle's three."""
-    broad = ipctk.LBVH()
-    broad.build(np.asfortranarray(x), np.asfortranarray(mesh.edges), np.asfortranarray(mesh.faces), 0.0)
     pairs: set[tuple[int, int]] = set()
-    for c in broad.detect_edge_face_candidates():
-        e, f = mesh.edges[c.edge_id], mesh.faces[c.face_id]
-        if e.max() >= n_cloth or f.max() >= n_cloth or set(e) & set(f):
-            continue
-        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+    for e, f in _crossings(mesh, x, n_cloth):
+        if e.max() < n_cloth and f.max() < n_cloth:
             pairs.update((min(a, b), max(a, b)) for a in e.tolist() for b in f.tolist())
     return pairs
+
+
+def crossings_at(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int, vertices: np.ndarray) -> np.ndarray:
+    """Those of `vertices` on an edge or triangle that crosses another (cloth or body)."""
+    hit = set()
+    mine = set(np.asarray(vertices).tolist())
+    for e, f in _crossings(mesh, x, n_cloth):
+        hit.update(mine.intersection(e.tolist() + f.tolist()))
+    return np.array(sorted(hit), np.int64)

@@ -50,17 +50,16 @@ class BarrierEnergy(ContactEnergy):
             self._H_cb = None
         return self._x
 
+    # More (W, cloth faces) whose triangles the Hessian pattern must hold: the contact
+    # mesh the seams will sew shut (sim/simulator.py), whose seam vertices couple both
+    # panels' control points.
+    stencil_meshes: tuple = ()
+
     def stencils(self):
         """Control points under each cloth triangle: contacts against obstacles couple only
         these, so the Hessian pattern holds them (distant self-contact still falls outside
         and is moved onto the diagonal, see assembly.add_dof_matrix)."""
-        W = self.contact.W.tocsr()
-        per_vertex = -np.ones((W.shape[0], 9), np.int64)
-        counts = np.diff(W.indptr)
-        rows = np.repeat(np.arange(W.shape[0]), counts)
-        slot = np.arange(W.indices.size) - W.indptr[rows]
-        per_vertex[rows, slot] = W.indices
-        return [per_vertex[self.contact.cloth_faces].reshape(len(self.contact.cloth_faces), 27)]
+        return [_face_stencils(W, F) for W, F in ((self.contact.W, self.contact.cloth_faces), *self.stencil_meshes)]
 
     def bind(self, pattern):
         self.hmap = ContactHessianMap(self.contact.W, pattern)
@@ -104,3 +103,13 @@ class BarrierEnergy(ContactEnergy):
         if len(self.collisions) == 0:
             return float("inf")
         return float(np.sqrt(self.collisions.compute_minimum_distance(self.contact.mesh, x)))
+
+
+def _face_stencils(W, faces) -> np.ndarray:
+    """(F, 3 k) control points under each triangle (k: the most per vertex, -1 padded)."""
+    W = W.tocsr()
+    counts = np.diff(W.indptr)
+    per_vertex = -np.ones((W.shape[0], max(int(counts.max(initial=0)), 1)), np.int64)
+    rows = np.repeat(np.arange(W.shape[0]), counts)
+    per_vertex[rows, np.arange(W.indices.size) - W.indptr[rows]] = W.indices
+    return per_vertex[faces].reshape(len(faces), -1)

@@ -21,12 +21,16 @@ from .contact import ContactEnergy
 class FrictionEnergy(ContactEnergy):
     def __init__(self, barrier: BarrierEnergy, mu: float, eps_v: float, dt: float):
         self.barrier = barrier
-        self.contact = barrier.contact
         self.mu = float(mu)
         self.dt = float(dt)
         self.potential = ipctk.FrictionPotential(float(eps_v))
         self.tangential = ipctk.TangentialCollisions()
         self.x_n = None
+
+    @property
+    def contact(self):
+        """The barrier's contact mesh (it changes when the seams merge)."""
+        return self.barrier.contact
 
     def stencils(self):
         return self.barrier.stencils()

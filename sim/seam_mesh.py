@@ -1,0 +1,267 @@
+"""Piece meshes that meet along seams, and the vertex groups a closed seam merges.
+
+A sewn piece's contact (and export) mesh is its uv grid (sim/embedding.py) inside, and
+along its boundary a ring of triangles zipped to the seams' matched points: each sewn
+stretch of boundary carries the seam's samples (thinned to about the grid spacing and
+subdivided where sparser), the same count on both sides, so the matched vertices of the
+two panels are pairs. Once the seams are closed the simulator merges every pair into one
+contact vertex (Simulator._merge_seams): the panels then share one vertex line, as a
+stitched seam does, so stitched neighbours never create a barrier (ipctk never pairs
+primitives that share a vertex) while every other pair near the seam keeps its barrier.
+
+Boundary positions are measured by g, the perimeter in grid steps: the grid's boundary
+vertices sit at integer g, counter-clockwise from u = v = 0 (v = 0, then u = U, v = V,
+u = 0), so a seam may run along any part of the boundary, corners included.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from .embedding import grid_faces
+
+THIN = 0.5  # keep seam samples at least this many grid steps apart (on both sides)
+CLEAR = 0.35  # drop grid boundary vertices closer than this (grid steps) to a seam vertex
+
+
+class Perimeter:
+    """The boundary of the parameter rectangle [0, U] x [0, V] of an a x b vertex grid."""
+
+    def __init__(self, U: float, V: float, a: int, b: int):
+        self.U, self.V, self.a, self.b = U, V, a, b
+        self.corners = np.array([0.0, a - 1.0, a + b - 2.0, 2.0 * a + b - 3.0])
+        self.length = 2.0 * (a + b - 2)
+
+    def on_boundary(self, uv: np.ndarray) -> bool:
+        u, v = uv[:, 0], uv[:, 1]
+        tol = 1e-9 * max(self.U, self.V)
+        return bool(np.all((np.abs(u) <= tol) | (np.abs(u - self.U) <= tol)
+                           | (np.abs(v) <= tol) | (np.abs(v - self.V) <= tol)))
+
+    def g(self, uv: np.ndarray) -> np.ndarray:
+        """Perimeter coordinate of boundary points uv (N, 2)."""
+        U, V, a, b = self.U, self.V, self.a, self.b
+        u, v = uv[:, 0], uv[:, 1]
+        du, dv = (a - 1) / U, (b - 1) / V
+        tol = 1e-9 * max(U, V)
+        g = np.full(len(uv), np.nan)
+        on = [np.abs(v) <= tol, np.abs(u - U) <= tol, np.abs(v - V) <= tol, np.abs(u) <= tol]
+        # Last assignment wins: a corner takes its later side's value, except u = v = 0 (0).
+        g = np.where(on[3], self.corners[3] + (V - v) * dv, g)
+        g = np.where(on[2], self.corners[2] + (U - u) * du, g)
+        g = np.where(on[1], self.corners[1] + v * dv, g)
+        g = np.where(on[0], u * du, g)
+        if np.isnan(g).any():
+            raise ValueError("seam sample off the patch boundary")
+        return g
+
+    def uv(self, g: np.ndarray) -> np.ndarray:
+        """Boundary points (N, 2) at perimeter coordinates g (any real: taken mod length)."""
+        U, V, a, b = self.U, self.V, self.a, self.b
+        g = np.mod(g, self.length)
+        c = self.corners
+        side = np.searchsorted(c, g, side="right") - 1
+        t = g - c[side]
+        u = np.choose(side, [t * U / (a - 1), np.full_like(t, U), U - t * U / (a - 1), np.zeros_like(t)])
+        v = np.choose(side, [np.zeros_like(t), t * V / (b - 1), np.full_like(t, V), V - t * V / (b - 1)])
+        return np.c_[u, v]
+
+
+def matched_points(ga: np.ndarray, gb: np.ndarray, per_a: Perimeter, per_b: Perimeter):
+    """Seam samples (perimeter coordinates of both sides, matched) with the patch corners
+    they pass added, thinned to THIN grid steps and subdivided to at most one grid step
+    per interval, on both sides alike. Returns both sides' coordinates, unwrapped."""
+    ga, gb = _unwrap(ga, per_a.length), _unwrap(gb, per_b.length)
+    # Corners inside an interval (on either side) become samples, with the other side
+    # interpolated, so the boundary keeps its corners.
+    pa, pb, fixed = [ga[0]], [gb[0]], [True]
+    for k in range(len(ga) - 1):
+        cuts = []
+        for g, per in ((ga, per_a), (gb, per_b)):
+            lo, hi = sorted((g[k], g[k + 1]))
+            for c in per.corners[None, :] + per.length * np.arange(-1, 2)[:, None]:
+                for corner in c[(c > lo + 1e-9) & (c < hi - 1e-9)]:
+                    cuts.append((corner - g[k]) / (g[k + 1] - g[k]))
+        for t in sorted(cuts):
+            pa.append(ga[k] + t * (ga[k + 1] - ga[k]))
+            pb.append(gb[k] + t * (gb[k + 1] - gb[k]))
+            fixed.append(True)
+        pa.append(ga[k + 1])
+        pb.append(gb[k + 1])
+        fixed.append(k + 1 == len(ga) - 1)
+    ga, gb = np.asarray(pa), np.asarray(pb)
+    keep = [0]
+    for k in range(1, len(ga)):
+        far = min(abs(ga[k] - ga[keep[-1]]), abs(gb[k] - gb[keep[-1]])) >= THIN
+        if fixed[k]:
+            if not far and not fixed[keep[-1]]:
+                keep[-1] = k  # a corner or the seam's end stays, its too-close predecessor goes
+            else:
+                keep.append(k)
+        elif far:
+            keep.append(k)
+    ga, gb = ga[keep], gb[keep]
+    out_a, out_b = [ga[:1]], [gb[:1]]
+    for k in range(len(ga) - 1):
+        q = max(int(np.ceil(max(abs(ga[k + 1] - ga[k]), abs(gb[k + 1] - gb[k])) - 1e-9)), 1)
+        t = np.arange(1, q + 1) / q
+        out_a.append(ga[k] + t * (ga[k + 1] - ga[k]))
+        out_b.append(gb[k] + t * (gb[k + 1] - gb[k]))
+    return np.concatenate(out_a), np.concatenate(out_b)
+
+
+def _unwrap(g: np.ndarray, period: float) -> np.ndarray:
+    """Make consecutive perimeter coordinates continuous across g = 0."""
+    d = np.diff(g)
+    d -= period * np.round(d / period)
+    return np.concatenate([g[:1], g[0] + np.cumsum(d)])
+
+
+def seamed_mesh(U: float, V: float, resolution: tuple[int, int], seam_g: list[np.ndarray]):
+    """Mesh of one piece whose boundary carries the seam vertices seam_g (one array of
+    perimeter coordinates per seam side, in seam order, unwrapped).
+
+    Returns uv (Nv, 2), faces (Nf, 3) counter-clockwise in uv like grid_faces, and per
+    seam side the vertex index of each of its points."""
+    a, b = resolution
+    if a < 4 or b < 4:
+        raise ValueError(f"a seamed piece needs a contact mesh of at least 4 x 4 vertices, not {a} x {b}")
+    per = Perimeter(U, V, a, b)
+    L = per.length
+    # Outer loop: seam vertices, then the grid's boundary vertices clear of every seam.
+    keys: dict[float, int] = {}
+    outer_g: list[float] = []
+
+    def vertex(g: float) -> int:
+        g = float(np.mod(g, L))
+        g = 0.0 if abs(g - L) < 1e-9 else g
+        for k, idx in keys.items():
+            if abs(k - g) < 1e-9:
+                return idx
+        keys[g] = len(outer_g)
+        outer_g.append(g)
+        return keys[g]
+
+    seam_vertices = [np.array([vertex(g) for g in gs], np.int64) for gs in seam_g]
+    regular = np.arange(int(L), dtype=float)
+    covered = np.zeros(len(regular), bool)
+    for gs in seam_g:
+        for g0, g1 in zip(gs[:-1], gs[1:]):
+            lo, hi = min(g0, g1), max(g0, g1)
+            # Strictly inside a seam interval (unwrapped, so compare modulo L).
+            for shift in (-L, 0.0, L):
+                covered |= (regular + shift > lo + 1e-9) & (regular + shift < hi - 1e-9)
+        near = np.abs((regular[:, None] - np.mod(gs, L)[None, :] + L / 2) % L - L / 2).min(axis=1)
+        covered |= near < CLEAR
+    for g in regular[~covered]:
+        vertex(g)
+    outer_g = np.asarray(outer_g)
+
+    # Inner grid: vertices (i, j), 1 <= i <= a-2, 1 <= j <= b-2, and its boundary loop
+    # placed at the perimeter coordinates of the outer vertices it faces.
+    ni, nj = a - 2, b - 2
+    us, vs = np.linspace(0.0, U, a), np.linspace(0.0, V, b)
+    I, J = np.meshgrid(np.arange(1, a - 1), np.arange(1, b - 1), indexing="ij")
+    inner_uv = np.c_[us[I.ravel()], vs[J.ravel()]]
+    idx = lambda i, j: (i - 1) * nj + (j - 1)  # noqa: E731
+    c = per.corners
+    loop = [(idx(1, 1), 0.0)]
+    loop += [(idx(i, 1), float(i)) for i in range(2, a - 2)]
+    loop += [(idx(a - 2, 1), c[1])] + [(idx(a - 2, j), c[1] + j) for j in range(2, b - 2)]
+    loop += [(idx(a - 2, b - 2), c[2])] + [(idx(i, b - 2), c[2] + (a - 1 - i)) for i in range(a - 3, 1, -1)]
+    loop += [(idx(1, b - 2), c[3])] + [(idx(1, j), c[3] + (b - 1 - j)) for j in range(b - 3, 1, -1)]
+    inner_idx = np.array([v for v, _ in loop])
+    inner_g = np.array([g for _, g in loop])
+
+    n_inner = ni * nj
+    order = np.argsort(outer_g, kind="stable")
+    O = np.r_[order, order[:1]] + n_inner
+    sO = np.r_[outer_g[order], outer_g[order[0]] + L]
+    In = np.r_[inner_idx, inner_idx[:1]]
+    sI = np.r_[inner_g, L]
+    ring = []
+    i = j = 0
+    while i < len(O) - 1 or j < len(In) - 1:
+        if j == len(In) - 1 or (i < len(O) - 1 and sO[i + 1] <= sI[j + 1]):
+            ring.append((O[i], O[i + 1], In[j]))
+            i += 1
+        else:
+            ring.append((O[i], In[j + 1], In[j]))
+            j += 1
+    inner_faces = grid_faces(ni, nj)
+    faces = np.concatenate([inner_faces, np.asarray(ring, np.int64)]).astype(np.int32)
+    uv = np.concatenate([inner_uv, per.uv(outer_g)])
+    return uv, faces, [v + n_inner for v in seam_vertices]
+
+
+def seam_meshes(shapes: dict, resolutions: dict, seams) -> tuple[dict, list, list]:
+    """Meshes of the sewn pieces and the matched vertex pairs of every boundary seam.
+
+    shapes / resolutions: control-net shape (n, m) and contact-mesh grid (a, b) by piece
+    name; seams: sim.seams.SeamSpec. Returns {name: (uv, faces)} for the pieces with a
+    boundary seam; per boundary seam (piece_a, vertices_a, piece_b, vertices_b), matched
+    in order; and the seams with samples inside a patch (darts whose legs run into the
+    panel), which get no matched vertices."""
+    perimeters = {name: Perimeter(n - 2.0, m - 2.0, *resolutions[name]) for name, (n, m) in shapes.items()}
+    sides: dict[str, list] = {}
+    boundary, interior = [], []
+    for s in seams:
+        pa, pb = perimeters[s.piece_a], perimeters[s.piece_b]
+        uv_a, uv_b = np.asarray(s.uv_a, float), np.asarray(s.uv_b, float)
+        if not (pa.on_boundary(uv_a) and pb.on_boundary(uv_b)):
+            interior.append(s)
+            continue
+        ga, gb = matched_points(pa.g(uv_a), pb.g(uv_b), pa, pb)
+        sides.setdefault(s.piece_a, []).append(ga)
+        sides.setdefault(s.piece_b, []).append(gb)
+        boundary.append(s)
+    meshes, vertices = {}, {}
+    for name, gs in sides.items():
+        per = perimeters[name]
+        uv, faces, seam_vertices = seamed_mesh(per.U, per.V, (per.a, per.b), gs)
+        meshes[name] = (uv, faces)
+        vertices[name] = iter(seam_vertices)
+    # Seam sides were appended in seam order, a before b: hand them back the same way.
+    pairs = [(s.piece_a, next(vertices[s.piece_a]), s.piece_b, next(vertices[s.piece_b])) for s in boundary]
+    return meshes, pairs, interior
+
+
+# --------------------------------------------------------------------------- merging
+
+def merged_labels(n: int, pairs: np.ndarray) -> np.ndarray:
+    """Class label (0..K-1) of each of n vertices, pairs (P, 2) joined (union-find, so
+    junctions of several seams become one class)."""
+    g = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(g, directed=False)[1]
+
+
+def mean_rows(labels: np.ndarray) -> sp.csr_matrix:
+    """(K, n) averaging of the rows in each class."""
+    count = np.bincount(labels)
+    return sp.csr_matrix((1.0 / count[labels], (labels, np.arange(len(labels)))), shape=(len(count), len(labels)))
+
+
+def merged_faces(F: np.ndarray) -> np.ndarray:
+    """Faces after merging: those with a repeated vertex (collapsed at a dart tip) and
+    repeats of one triangle (both sides of a closed dart) dropped."""
+    ok = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])
+    F = F[ok]
+    _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
+    return np.ascontiguousarray(F[np.sort(first)], dtype=np.int32)
+
+
+def vertex_rings(faces: np.ndarray, n: int) -> list[np.ndarray]:
+    """Each vertex with its neighbours (sharing a triangle)."""
+    i = np.repeat(faces, 3, axis=1).ravel()
+    j = np.tile(faces, (1, 3)).ravel()
+    A = sp.csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
+    return [A.indices[A.indptr[v]:A.indptr[v + 1]] for v in range(n)]
+
+
+def exclude_all(pairs: set, vertices: np.ndarray) -> None:
+    """Add every pair (i < j) among `vertices`."""
+    v = np.asarray(vertices, np.int64)
+    I, J = np.triu_indices(len(v), 1)
+    pairs.update(zip(np.minimum(v[I], v[J]).tolist(), np.maximum(v[I], v[J]).tolist()))

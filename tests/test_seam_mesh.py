@@ -1,0 +1,99 @@
+"""Seamed piece meshes (sim/seam_mesh.py): the uv rectangle tiled exactly, matched seam
+vertices on both sides, and the contact mesh sewn shut once the seams close."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from garment.scene import ContactSpec
+from sim.seam_mesh import THIN, Perimeter, matched_points, seamed_mesh
+from tests.intersections import intersecting_triangles, shared_vertices, stacked_cloth
+from tests.test_seams import _two_panels
+
+U, V, RES = 6.0, 4.0, (11, 8)
+
+
+def _areas(uv, F):
+    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+
+def _check_tiling(uv, F):
+    area = _areas(uv, F)
+    assert area.min() > 0.0  # counter-clockwise, like grid_faces
+    assert abs(area.sum() - U * V) < 1e-12  # the rectangle, no gap, no overlap
+    e = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    edges, count = np.unique(e, axis=0, return_counts=True)
+    assert count.max() == 2  # edge-manifold
+    B = edges[count == 1]
+    on = Perimeter(U, V, *RES).on_boundary
+    assert on(uv[B[:, 0]]) and on(uv[B[:, 1]])  # boundary edges lie on the rectangle's sides
+
+
+@pytest.mark.parametrize("seam", [
+    (12.0, 17.0),  # along u = U
+    (30.0, 27.5),  # along v = V, reversed
+    (28.5, 34.0),  # round the corner (0, V)
+])
+def test_seamed_mesh_tiles_the_rectangle_with_the_seam_vertices_on_its_boundary(seam):
+    per = Perimeter(U, V, *RES)
+    g = np.linspace(*seam, 7)
+    ga, _ = matched_points(g, g[::-1] + 1.0, per, per)
+    uv, F, (verts,) = seamed_mesh(U, V, RES, [ga])
+    _check_tiling(uv, F)
+    np.testing.assert_allclose(uv[verts], per.uv(ga), atol=1e-12)
+    steps = np.abs(np.diff(ga))
+    assert steps.max() <= 1.0 + 1e-12 and steps.min() >= THIN * 0.5 - 1e-12
+
+
+def test_matched_points_keep_corners_and_pair_both_sides():
+    per = Perimeter(U, V, *RES)
+    c = per.corners[3]  # (0, V)
+    ga, gb = matched_points(np.array([c - 2.3, c + 2.1]), np.array([1.0, 4.0]), per, per)
+    assert len(ga) == len(gb)
+    assert np.any(np.abs(ga - c) < 1e-12)  # the corner is a vertex
+    # Both sides advance together: the same fraction of the seam at every matched pair.
+    np.testing.assert_allclose((ga - ga[0]) / (ga[-1] - ga[0]), (gb - gb[0]) / (gb[-1] - gb[0]), atol=1e-12)
+    assert np.diff(ga).max() <= 1.0 + 1e-12 and np.diff(gb).max() <= 1.0 + 1e-12
+
+
+def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
+    sim = _two_panels(0.03)
+    merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(6)]
+    n = len(sim.seam_vertex_pairs)
+    assert merged == [0, n, 0, 0, 0, 0] and (sim.seam_pairs == 1).all()  # shut once all are within d_hat
+    # Matched vertices now are one contact vertex and export the same position bit for bit.
+    W, F, _ = stacked_cloth(sim.pieces)
+    x = W @ sim.C
+    a, b = sim.seam_vertex_pairs.T
+    assert np.array_equal(x[a], x[b])
+    assert sim.barrier.contact.n_cloth == len(x) - len(a)
+    # No barrier between stitched neighbours, none needed anywhere else, nothing crosses.
+    st = sim.step()
+    assert st.extra["contact_count"] == 0
+    assert len(intersecting_triangles(*shared_vertices(x, F))) == 0
+    assert sim.seam.samples.gaps(sim.C).max() < 1e-5
+
+
+def test_resume_after_the_seams_merged(tmp_path):
+    from sim.checkpoint import read_checkpoint, restore, write_checkpoint
+
+    sim = _two_panels(0.03)
+    for _ in range(3):
+        sim.step()
+    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim, 3, "sewn"))
+    resumed = _two_panels(0.03)
+    restore(resumed, ck.state)
+    assert (resumed.seam_pairs == 1).all()
+    sim.step()
+    resumed.step()
+    assert np.array_equal(resumed.C, sim.C)
+
+
+def test_band_seams_keep_grids_and_exclude_pairs_near_the_seam():
+    merged = _two_panels(0.03)
+    band = _two_panels(0.03, contact=ContactSpec(enabled=True, adaptive_kappa=True, seams="band"))
+    assert len(band.seam_vertex_pairs) == 0 and len(band.interior_seams) == 1
+    assert [len(p.topology.faces) for p in band.pieces] == [2 * 10 * 10] * 2  # the plain 11 x 11 grids
+    assert len(merged.seam_vertex_pairs) > 0 and not merged.interior_seams
