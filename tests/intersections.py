@@ -96,3 +96,13 @@ def shared_vertices(V, F) -> tuple[np.ndarray, np.ndarray]:
     T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 0] != T[:, 2])]
     _, first = np.unique(np.sort(T, axis=1), axis=0, return_index=True)
     return X, T[np.sort(first)]
+
+
+def garment_intersections(pieces, C, body_vertices, body_faces) -> tuple[np.ndarray, int, int]:
+    """A simulator's cloth at control points C: its vertices, and the intersecting triangle
+    pairs cloth-body and cloth-cloth (sewn panels joined at their shared seam vertices)."""
+    W, F, _ = stacked_cloth(pieces)  # the pieces' seam rows change when the seams merge
+    x = W @ C
+    if not np.all(np.isfinite(x)):
+        return x, -1, -1
+    return x, len(intersecting_triangles(x, F, body_vertices, body_faces)), len(intersecting_triangles(*shared_vertices(x, F)))

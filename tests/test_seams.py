@@ -11,6 +11,7 @@ from garment.scene import ContactSpec
 from sim.seams import SeamSpec
 from sim.simulator import Simulator
 from tests.intersections import intersecting_pairs
+from tests.test_energies import fd_gradient
 
 N = 8
 
@@ -106,13 +107,7 @@ def test_seam_multipliers_derivatives_match_finite_differences():
         return g
 
     eps = 1e-6
-    fd = np.zeros_like(C)
-    for i in range(C.shape[0]):
-        for d in range(3):
-            Cp, Cm = C.copy(), C.copy()
-            Cp[i, d] += eps
-            Cm[i, d] -= eps
-            fd[i, d] = (seam.value(Cp) - seam.value(Cm)) / (2 * eps)
+    fd = fd_gradient(seam, C, eps)
     g = grad(C)
     assert np.abs(fd - g).max() < 1e-6 * np.abs(g).max()
     for _ in range(3):  # the multipliers add nothing to the (constant) Hessian K (x) I3
