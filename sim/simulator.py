@@ -235,6 +235,15 @@ class Simulator:
         """IPC barrier on the pieces' embedded meshes and the obstacles."""
         self._contact_spec = contact
         self._W_own = sp.vstack([p.W for p in self.pieces]).tocsr()  # each piece on its own surface
+        # Seams with samples inside a patch (sim/seams.py): vertex pairs near the same
+        # sample of both sides never collide (unmerged vertex numbers).
+        self._interior_excluded = set()
+        if self.interior_seams:
+            starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
+            self._interior_excluded = excluded_pairs(
+                self.interior_seams, {p.name: p for p in self.pieces},
+                {p.name: int(o) for p, o in zip(self.pieces, starts)},
+                {p.name: p.topology.rest for p in self.pieces}, self.n_cp, self._rest_points())
         # Seams closed from the start (panels laid out edge to edge) start sewn.
         x = self._W_own @ self.C0
         a, b = self.seam_vertex_pairs.T
@@ -263,7 +272,7 @@ class Simulator:
             offset += p.W.shape[0]
         faces = np.concatenate(faces)
         ids = np.concatenate([np.full(p.W.shape[0], k) for k, p in enumerate(self.pieces)])
-        excluded = set(self._interior_exclusions())
+        excluded = set(self._interior_excluded)
         W = self._W_own
         if seam_pairs is not None and (seam_pairs == 2).any():
             ring = vertex_rings(faces, offset)
@@ -292,19 +301,6 @@ class Simulator:
             # finer mesh may cross where the coarse one nearly touched; leave those be.
             mesh = build(excluded | crossing_pairs(mesh.mesh, x, mesh.n_cloth))
         return mesh
-
-    def _interior_exclusions(self) -> set:
-        """Contact-mesh vertex pairs next to the seams whose samples lie inside a patch
-        (sim/seams.py), in unmerged vertex numbers; computed once."""
-        if not hasattr(self, "_interior_excluded"):
-            self._interior_excluded = set()
-            if self.interior_seams:
-                starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
-                self._interior_excluded = excluded_pairs(
-                    self.interior_seams, {p.name: p for p in self.pieces},
-                    {p.name: int(o) for p, o in zip(self.pieces, starts)},
-                    {p.name: p.topology.rest for p in self.pieces}, self.n_cp, self._rest_points())
-        return self._interior_excluded
 
     def _merge_seams(self, restore: np.ndarray | None = None) -> int:
         """Sew the contact mesh shut where the seams have closed: every matched pair of
