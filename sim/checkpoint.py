@@ -45,6 +45,7 @@ class SimState:
     stiffness_prev_d: float | None = None
     projection_backoff: tuple[int, int] = (0, 1)
     seam_multipliers: np.ndarray | None = None  # (S, 3) N/m, with seams only
+    seam_gaps: np.ndarray | None = None  # (S,) m, at the multipliers' last update
     seam_pairs: np.ndarray | None = None  # (P,) seam vertex pairs: 0 open, 1 merged, 2 apart, no contact
 
 
@@ -62,6 +63,7 @@ def capture(sim) -> SimState:
         s.stiffness_prev_d = float(sim.stiffness._prev_d)
     if sim.seam is not None:
         s.seam_multipliers = sim.seam.multipliers.copy()
+        s.seam_gaps = sim.seam.last_gaps.copy()
         s.seam_pairs = sim.seam_pairs.copy()
     return s
 
@@ -88,6 +90,8 @@ def restore(sim, s: SimState) -> None:
         sim.stiffness._prev_d = s.stiffness_prev_d
     if sim.seam is not None and s.seam_multipliers is not None:
         sim.seam.multipliers = s.seam_multipliers.copy()
+        if s.seam_gaps is not None:
+            sim.seam.last_gaps = s.seam_gaps.copy()
     if s.seam_pairs is not None and s.seam_pairs.any():
         sim._merge_seams(restore=s.seam_pairs)
 
@@ -125,7 +129,7 @@ def write_checkpoint(path: str | os.PathLike, sim, frame: int, scene_hash: str,
         "projection_backoff": np.asarray(s.projection_backoff, np.int64),
     }
     for name in ("obstacle_vertices", "drive_target", "kappa", "stiffness_floor", "stiffness_prev_d",
-                 "seam_multipliers", "seam_pairs"):
+                 "seam_multipliers", "seam_gaps", "seam_pairs"):
         value = getattr(s, name)
         if value is not None:
             arrays[name] = np.asarray(value, np.float64)
@@ -151,7 +155,7 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
         with np.load(path, allow_pickle=False) as d:
             if int(d["format"]) != FORMAT:
                 raise InputError(f"{path}: checkpoint format {int(d['format'])}, this version reads {FORMAT}")
-            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_pairs") if k in d.files}
+            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_gaps", "seam_pairs") if k in d.files}
             num = {k: float(d[k]) for k in ("kappa", "stiffness_floor", "stiffness_prev_d") if k in d.files}
             state = SimState(d["C"].copy(), d["V"].copy(), float(d["t"]), int(d["step_count"]), float(d["dt"]),
                              projection_backoff=tuple(int(x) for x in d["projection_backoff"]),

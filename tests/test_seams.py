@@ -161,3 +161,17 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
+
+
+def test_multipliers_grow_only_while_the_gap_shrinks():
+    seam = _two_panels(0.02).seam
+    C = _two_panels(0.02).C
+    seam.update_multipliers(C)  # first update: 2 cm gaps, k g = 1e6 x 0.02 = 2e4 N/m
+    np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4, rtol=1e-9)
+    before = seam.multipliers.copy()
+    seam.update_multipliers(C)  # the same gap again: blocked, no more pushing
+    assert np.array_equal(seam.multipliers, before)
+    closer = C.copy()
+    closer[: C.shape[0] // 2, 0] += 0.005  # panel a moved 5 mm towards b: the gap shrank by 25 %
+    seam.update_multipliers(closer)
+    np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 + 1.5e4, rtol=1e-9)

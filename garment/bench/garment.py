@@ -98,6 +98,6 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     state.C, state.V = np.concatenate(C), np.concatenate(V)
     # Other samples and seam vertices at the finer spans: the multipliers build up again,
     # the closed seams merge again at the first step.
-    state.seam_multipliers = state.seam_pairs = None
+    state.seam_multipliers = state.seam_gaps = state.seam_pairs = None
     restore(fine_sim, state)
     return fine_sim
