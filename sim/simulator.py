@@ -65,6 +65,9 @@ class Simulator:
     (N/m^2, one per seam or one for all), which ramps up over seam_ramp s (the sewing
     pre-roll), with velocities dropped after each of those steps if quasistatic_sewing;
     once sewn, seam_multipliers close the gaps that a penalty leaves (sim/energies/seam.py).
+    With contact, sewn pieces' meshes carry matched seam vertices that merge into one
+    contact vertex as each stretch of seam closes (sim/seam_mesh.py, _merge_seams), or,
+    with contact.seams = "band", contact is off near every seam sample.
     """
 
     def __init__(
