@@ -64,7 +64,8 @@ def capture(sim) -> SimState:
     if sim.seam is not None:
         s.seam_multipliers = sim.seam.multipliers.copy()
         s.seam_gaps = sim.seam.last_gaps.copy()
-        s.seam_pairs = sim.seam_pairs.copy()
+        if sim.seam_contact is not None:
+            s.seam_pairs = sim.seam_contact.state.copy()
     return s
 
 

@@ -5,13 +5,16 @@ along its boundary a ring of triangles zipped to the seams' matched points: each
 stretch of boundary carries the seam's samples (thinned to about the grid spacing and
 subdivided where sparser), the same count on both sides, so the matched vertices of the
 two panels are pairs. Once the seams are closed the simulator merges every pair into one
-contact vertex (Simulator._merge_seams): the panels then share one vertex line, as a
+contact vertex (sim/contact/seams.py): the panels then share one vertex line, as a
 stitched seam does, so stitched neighbours never create a barrier (ipctk never pairs
 primitives that share a vertex) while every other pair near the seam keeps its barrier.
 
 Boundary positions are measured by g, the perimeter in grid steps: the grid's boundary
 vertices sit at integer g, counter-clockwise from u = v = 0 (v = 0, then u = U, v = V,
-u = 0), so a seam may run along any part of the boundary, corners included.
+u = 0), so a seam may run along any part of the boundary, corners included. Seams that
+run into a patch (darts whose legs the boundary fit left inside the panel) carry their
+matched points as interior vertices; such a piece is triangulated by Delaunay (in grid
+steps) over its grid, boundary loop and those points.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import Delaunay
 
 from .embedding import grid_faces
 
@@ -112,6 +116,28 @@ def matched_points(ga: np.ndarray, gb: np.ndarray, per_a: Perimeter, per_b: Peri
     return np.concatenate(out_a), np.concatenate(out_b)
 
 
+def matched_uv_points(uv_a: np.ndarray, uv_b: np.ndarray, step_a: np.ndarray, step_b: np.ndarray):
+    """Matched samples (S, 2) of a seam that runs into its patches, in uv, thinned to THIN
+    and subdivided to at most one grid step (step_*: uv size of a grid step) per interval
+    on both sides alike, as matched_points does along the boundary."""
+    da = np.linalg.norm(np.diff(uv_a, axis=0) / step_a, axis=1)
+    db = np.linalg.norm(np.diff(uv_b, axis=0) / step_b, axis=1)
+    ta, tb = np.r_[0.0, np.cumsum(da)], np.r_[0.0, np.cumsum(db)]
+    keep = [0]
+    for k in range(1, len(uv_a)):
+        if min(ta[k] - ta[keep[-1]], tb[k] - tb[keep[-1]]) >= THIN:
+            keep.append(k)
+        elif k == len(uv_a) - 1:
+            keep[-1:] = [k] if len(keep) > 1 else [0, k]  # the seam's end stays
+    out_a, out_b = [uv_a[:1]], [uv_b[:1]]
+    for i, j in zip(keep[:-1], keep[1:]):
+        q = max(int(np.ceil(max(ta[j] - ta[i], tb[j] - tb[i]) - 1e-9)), 1)
+        t = (np.arange(1, q + 1) / q)[:, None]
+        out_a.append(uv_a[i] + t * (uv_a[j] - uv_a[i]))
+        out_b.append(uv_b[i] + t * (uv_b[j] - uv_b[i]))
+    return np.concatenate(out_a), np.concatenate(out_b)
+
+
 def _unwrap(g: np.ndarray, period: float) -> np.ndarray:
     """Make consecutive perimeter coordinates continuous across g = 0."""
     d = np.diff(g)
@@ -119,9 +145,10 @@ def _unwrap(g: np.ndarray, period: float) -> np.ndarray:
     return np.concatenate([g[:1], g[0] + np.cumsum(d)])
 
 
-def seamed_mesh(U: float, V: float, resolution: tuple[int, int], seam_g: list[np.ndarray]):
-    """Mesh of one piece whose boundary carries the seam vertices seam_g (one array of
-    perimeter coordinates per seam side, in seam order, unwrapped).
+def seamed_mesh(U: float, V: float, resolution: tuple[int, int], sides: list[np.ndarray]):
+    """Mesh of one piece whose seams' points are vertices: per seam side, in seam order,
+    either perimeter coordinates (S,) along the boundary (unwrapped) or uv points (S, 2)
+    of a seam that runs into the patch.
 
     Returns uv (Nv, 2), faces (Nf, 3) counter-clockwise in uv like grid_faces, and per
     seam side the vertex index of each of its points."""
@@ -130,41 +157,61 @@ def seamed_mesh(U: float, V: float, resolution: tuple[int, int], seam_g: list[np
         raise ValueError(f"a seamed piece needs a contact mesh of at least 4 x 4 vertices, not {a} x {b}")
     per = Perimeter(U, V, a, b)
     L = per.length
-    # Outer loop: seam vertices, then the grid's boundary vertices clear of every seam.
-    keys: dict[float, int] = {}
-    outer_g: list[float] = []
+    # Outer loop (seam vertices, then the grid's boundary vertices clear of every seam)
+    # and interior seam points, each found by position.
+    outer: dict[float, int] = {}
+    inner: dict[tuple[float, float], int] = {}
 
     def vertex(g: float) -> int:
         g = float(np.mod(g, L))
-        g = 0.0 if abs(g - L) < 1e-9 else g
-        for k, idx in keys.items():
-            if abs(k - g) < 1e-9:
-                return idx
-        keys[g] = len(outer_g)
-        outer_g.append(g)
-        return keys[g]
+        key = 0.0 if abs(g - L) < 1e-9 else round(g, 9)
+        return outer.setdefault(key, len(outer))
 
-    seam_vertices = [np.array([vertex(g) for g in gs], np.int64) for gs in seam_g]
+    def point(uv: np.ndarray) -> int:
+        if per.on_boundary(uv[None]):
+            return vertex(per.g(uv[None])[0])
+        return -1 - inner.setdefault((round(uv[0], 12), round(uv[1], 12)), len(inner))
+
+    seam_vertices = [np.array([vertex(g) for g in side] if side.ndim == 1 else [point(p) for p in side], np.int64)
+                     for side in sides]
     regular = np.arange(int(L), dtype=float)
     covered = np.zeros(len(regular), bool)
-    for gs in seam_g:
-        for g0, g1 in zip(gs[:-1], gs[1:]):
-            lo, hi = min(g0, g1), max(g0, g1)
-            # Strictly inside a seam interval (unwrapped, so compare modulo L).
-            for shift in (-L, 0.0, L):
-                covered |= (regular + shift > lo + 1e-9) & (regular + shift < hi - 1e-9)
-        near = np.abs((regular[:, None] - np.mod(gs, L)[None, :] + L / 2) % L - L / 2).min(axis=1)
-        covered |= near < CLEAR
+    for side in sides:
+        if side.ndim == 1:
+            for g0, g1 in zip(side[:-1], side[1:]):
+                lo, hi = min(g0, g1), max(g0, g1)
+                # Strictly inside a seam interval (unwrapped, so compare modulo L).
+                for shift in (-L, 0.0, L):
+                    covered |= (regular + shift > lo + 1e-9) & (regular + shift < hi - 1e-9)
+    outer_g = np.fromiter(outer, float, len(outer))
+    near = np.abs((regular[:, None] - outer_g[None, :] + L / 2) % L - L / 2).min(axis=1, initial=np.inf)
+    covered |= near < CLEAR
     for g in regular[~covered]:
         vertex(g)
-    outer_g = np.asarray(outer_g)
+    outer_g = np.fromiter(outer, float, len(outer))
+    inner_uv = np.array(list(inner), float).reshape(-1, 2)
 
-    # Inner grid: vertices (i, j), 1 <= i <= a-2, 1 <= j <= b-2, and its boundary loop
-    # placed at the perimeter coordinates of the outer vertices it faces.
-    ni, nj = a - 2, b - 2
-    us, vs = np.linspace(0.0, U, a), np.linspace(0.0, V, b)
+    grid_uv, faces = _delaunay(per, outer_g, inner_uv) if len(inner) else _zipped_ring(per, outer_g)
+    n_grid = len(grid_uv)
+    uv = np.concatenate([grid_uv, per.uv(outer_g), inner_uv])
+    ids = [np.where(v >= 0, n_grid + v, n_grid + len(outer_g) - 1 - v) for v in seam_vertices]
+    return uv, faces, ids
+
+
+def _inner_grid(per: Perimeter) -> np.ndarray:
+    """uv of the grid's vertices off the boundary, (i, j) for 1 <= i <= a-2, 1 <= j <= b-2."""
+    a, b = per.a, per.b
+    us, vs = np.linspace(0.0, per.U, a), np.linspace(0.0, per.V, b)
     I, J = np.meshgrid(np.arange(1, a - 1), np.arange(1, b - 1), indexing="ij")
-    inner_uv = np.c_[us[I.ravel()], vs[J.ravel()]]
+    return np.c_[us[I.ravel()], vs[J.ravel()]]
+
+
+def _zipped_ring(per: Perimeter, outer_g: np.ndarray):
+    """The inner grid as it is, zipped to the outer loop by a ring of triangles: the inner
+    grid's boundary loop placed at the perimeter coordinates of the outer vertices it faces.
+    Returns the inner grid's uv and all faces (outer loop numbered after the grid)."""
+    a, b, L = per.a, per.b, per.length
+    nj = b - 2
     idx = lambda i, j: (i - 1) * nj + (j - 1)  # noqa: E731
     c = per.corners
     loop = [(idx(1, 1), 0.0)]
@@ -175,7 +222,7 @@ def seamed_mesh(U: float, V: float, resolution: tuple[int, int], seam_g: list[np
     inner_idx = np.array([v for v, _ in loop])
     inner_g = np.array([g for _, g in loop])
 
-    n_inner = ni * nj
+    n_inner = (a - 2) * nj
     order = np.argsort(outer_g, kind="stable")
     O = np.r_[order, order[:1]] + n_inner
     sO = np.r_[outer_g[order], outer_g[order[0]] + L]
@@ -190,33 +237,42 @@ def seamed_mesh(U: float, V: float, resolution: tuple[int, int], seam_g: list[np
         else:
             ring.append((O[i], In[j + 1], In[j]))
             j += 1
-    inner_faces = grid_faces(ni, nj)
-    faces = np.concatenate([inner_faces, np.asarray(ring, np.int64)]).astype(np.int32)
-    uv = np.concatenate([inner_uv, per.uv(outer_g)])
-    return uv, faces, [v + n_inner for v in seam_vertices]
+    faces = np.concatenate([grid_faces(a - 2, nj), np.asarray(ring, np.int64)]).astype(np.int32)
+    return _inner_grid(per), faces
 
 
-def seam_meshes(shapes: dict, resolutions: dict, seams) -> tuple[dict, list, list]:
-    """Meshes of the sewn pieces and the matched vertex pairs of every boundary seam.
+def _delaunay(per: Perimeter, outer_g: np.ndarray, inner_uv: np.ndarray):
+    """Delaunay triangulation, in grid steps, of the inner grid (less its vertices within
+    CLEAR of an interior seam point), the outer loop and the interior seam points.
+    Returns the kept grid vertices' uv and all faces (grid, outer loop, interior points)."""
+    grid, step = _inner_grid(per), _step(per)
+    d = np.linalg.norm((grid[:, None, :] - inner_uv[None, :, :]) / step, axis=2).min(axis=1)
+    grid = grid[d >= CLEAR]
+    pts = np.concatenate([grid, per.uv(outer_g), inner_uv]) / step
+    F = Delaunay(pts).simplices
+    p0, p1, p2 = pts[F[:, 0]], pts[F[:, 1]], pts[F[:, 2]]
+    area = 0.5 * ((p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p1[:, 1] - p0[:, 1]) * (p2[:, 0] - p0[:, 0]))
+    F = np.where((area < 0.0)[:, None], F[:, [0, 2, 1]], F)[np.abs(area) > 1e-9]  # collinear boundary slivers go
+    return grid, np.ascontiguousarray(F, dtype=np.int32)
+
+
+def seam_meshes(shapes: dict, resolutions: dict, seams) -> tuple[dict, list]:
+    """Meshes of the sewn pieces and the matched vertex pairs of every seam.
 
     shapes / resolutions: control-net shape (n, m) and contact-mesh grid (a, b) by piece
     name; seams: sim.seams.SeamSpec. Returns {name: (uv, faces)} for the pieces with a
-    boundary seam; per boundary seam (piece_a, vertices_a, piece_b, vertices_b), matched
-    in order; and the seams with samples inside a patch (darts whose legs run into the
-    panel), which get no matched vertices."""
+    seam, and per seam (piece_a, vertices_a, piece_b, vertices_b), matched in order."""
     perimeters = {name: Perimeter(n - 2.0, m - 2.0, *resolutions[name]) for name, (n, m) in shapes.items()}
     sides: dict[str, list] = {}
-    boundary, interior = [], []
     for s in seams:
         pa, pb = perimeters[s.piece_a], perimeters[s.piece_b]
         uv_a, uv_b = np.asarray(s.uv_a, float), np.asarray(s.uv_b, float)
-        if not (pa.on_boundary(uv_a) and pb.on_boundary(uv_b)):
-            interior.append(s)
-            continue
-        ga, gb = matched_points(pa.g(uv_a), pb.g(uv_b), pa, pb)
+        if pa.on_boundary(uv_a) and pb.on_boundary(uv_b):
+            ga, gb = matched_points(pa.g(uv_a), pb.g(uv_b), pa, pb)
+        else:
+            ga, gb = matched_uv_points(uv_a, uv_b, _step(pa), _step(pb))
         sides.setdefault(s.piece_a, []).append(ga)
         sides.setdefault(s.piece_b, []).append(gb)
-        boundary.append(s)
     meshes, vertices = {}, {}
     for name, gs in sides.items():
         per = perimeters[name]
@@ -224,8 +280,13 @@ def seam_meshes(shapes: dict, resolutions: dict, seams) -> tuple[dict, list, lis
         meshes[name] = (uv, faces)
         vertices[name] = iter(seam_vertices)
     # Seam sides were appended in seam order, a before b: hand them back the same way.
-    pairs = [(s.piece_a, next(vertices[s.piece_a]), s.piece_b, next(vertices[s.piece_b])) for s in boundary]
-    return meshes, pairs, interior
+    pairs = [(s.piece_a, next(vertices[s.piece_a]), s.piece_b, next(vertices[s.piece_b])) for s in seams]
+    return meshes, pairs
+
+
+def _step(per: Perimeter) -> np.ndarray:
+    """uv size of one grid step."""
+    return np.array([per.U / (per.a - 1), per.V / (per.b - 1)])
 
 
 # --------------------------------------------------------------------------- merging

@@ -2,11 +2,10 @@
 
 A seam is (piece_a, uv_a (S, 2), piece_b, uv_b (S, 2)): uv_a[s] is sewn to uv_b[s]
 (garment.model.PatchSeam). Once closed, the two cloths meet edge to edge along it; their
-contact meshes then share the seam's vertices (sim/seam_mesh.py), so the barrier never
-holds a closed seam open. Seams with samples inside a patch (darts whose legs run into
-the panel) have no such vertices: contact-mesh vertices near the same sample of both legs
-are excluded from contact instead (excluded_pairs), which lets the legs meet but also
-lets the cloth right next to them cross.
+contact meshes then share the seam's vertices (sim/seam_mesh.py, sim/contact/seams.py),
+so the barrier never holds a closed seam open. With contact.seams = "band" the meshes are
+plain grids and contact-mesh vertices near the same sample of both sides are excluded
+from contact instead (excluded_pairs): cheaper, but cloth right next to a seam may cross.
 """
 
 from __future__ import annotations

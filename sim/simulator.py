@@ -23,7 +23,8 @@ import ipctk
 
 from . import quadrature
 from .contact.drive import BodyDrive
-from .contact.mesh import ContactMesh, crossing_pairs, crossings_at
+from .contact.mesh import ContactMesh
+from .contact.seams import SEWN, SeamContact
 from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
@@ -34,7 +35,7 @@ from .newton import NewtonOptions, minimize
 from .pins import PinGroup, select
 from .potential import IncrementalPotential
 from .rest import PointData, point_data
-from .seam_mesh import exclude_all, mean_rows, merged_faces, merged_labels, seam_meshes, vertex_rings
+from .seam_mesh import seam_meshes
 from .seams import SeamSpec, excluded_pairs, seam_samples
 from .sinks import Frame, MeshTopology, Sink
 from .stats import StepStats
@@ -66,7 +67,7 @@ class Simulator:
     pre-roll), with velocities dropped after each of those steps if quasistatic_sewing;
     once sewn, seam_multipliers close the gaps that a penalty leaves (sim/energies/seam.py).
     With contact, sewn pieces' meshes carry matched seam vertices that merge into one
-    contact vertex as each stretch of seam closes (sim/seam_mesh.py, _merge_seams), or,
+    contact vertex as each stretch of seam closes (sim/contact/seams.py), or,
     with contact.seams = "band", contact is off near every seam sample.
     """
 
@@ -100,11 +101,12 @@ class Simulator:
         # Sewn pieces' meshes carry matched vertices along their seams (sim/seam_mesh.py).
         self.seams = list(seams)
         resolutions = {p.name: mesh_resolution or default_resolution(*p.shape) for p in patches}
-        if contact is not None and contact.enabled and getattr(contact, "seams", "merge") == "band":
-            sewn_meshes, seam_pairs, self.interior_seams = {}, [], list(self.seams)  # all kept out of contact
+        with_contact = contact is not None and contact.enabled
+        if with_contact and getattr(contact, "seams", "merge") == "band":
+            sewn_meshes, matched, unmatched = {}, [], list(self.seams)  # all kept out of contact
         else:
-            sewn_meshes, seam_pairs, self.interior_seams = seam_meshes(
-                {p.name: p.shape for p in patches}, resolutions, self.seams)
+            sewn_meshes, matched = seam_meshes({p.name: p.shape for p in patches}, resolutions, self.seams)
+            unmatched = []
         self.pieces = []
         vertex_offset = {}
         n_vertices = 0
@@ -121,12 +123,16 @@ class Simulator:
             self.pieces.append(Piece(patch.name, patch, material, int(off), W, topo))
             vertex_offset[patch.name] = n_vertices
             n_vertices += len(u)
-        # Matched seam vertices (global cloth-vertex indices), merged once the seams close.
-        self.seam_vertex_pairs = np.concatenate(
-            [np.c_[va + vertex_offset[a], vb + vertex_offset[b]] for a, va, b, vb in seam_pairs]
+        # Matched seam vertices (global cloth-vertex indices), merged once the seams close;
+        # seams without them (band mode) keep contact off near each sample instead.
+        seam_vertex_pairs = np.concatenate(
+            [np.c_[va + vertex_offset[a], vb + vertex_offset[b]] for a, va, b, vb in matched]
             + [np.zeros((0, 2), np.int64)])
-        # Per pair: 0 open, 1 merged in the contact mesh, 2 kept apart without contact.
-        self.seam_pairs = np.zeros(len(self.seam_vertex_pairs), np.int8)
+        seam_excluded = set()
+        if with_contact and unmatched:
+            seam_excluded = excluded_pairs(
+                unmatched, {p.name: p for p in self.pieces}, vertex_offset,
+                {p.name: p.topology.rest for p in self.pieces}, self.n_cp, self._rest_points())
 
         # Per-point rest data, concatenated over patches.
         membranes: dict[str, list] = {}
@@ -179,7 +185,7 @@ class Simulator:
 
         # Initial control points: the contact check starts here and pins move relative to them.
         self.C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in self.pieces])
-        self._finish(contact, obstacles, materials, gravity)
+        self._finish(contact, obstacles, materials, gravity, seam_vertex_pairs, seam_excluded)
 
     # ------------------------------------------------------------------ construction
     def _elastic_energies(self, mode, forces, bend_parts, bend_D, membranes) -> None:
@@ -197,16 +203,18 @@ class Simulator:
             params = np.concatenate([np.tile(prm, (p.n_points, 1)) for p, prm in parts])
             self.energies.append(MEMBRANES[model](pts, params, self.n_cp))
 
-    def _finish(self, contact, obstacles, materials, gravity) -> None:
+    def _finish(self, contact, obstacles, materials, gravity, seam_vertex_pairs=None, seam_excluded=()) -> None:
         """Contact, pins, the incremental potential and the initial state, once the
-        energies and C0 exist (shared with sim.linear.LinearSimulator)."""
+        energies and C0 exist (shared with sim.linear.LinearSimulator). seam_vertex_pairs
+        (P, 2), seam_excluded: see sim/contact/seams.py."""
         self.obstacles = list(obstacles)
+        self.seam_contact = None
         self.barrier = None
         self.drive = None
         self.stiffness = None
         self.friction = None
         if contact is not None and contact.enabled:
-            self.barrier = self._contact_energy(contact)
+            self.barrier = self._contact_energy(contact, seam_vertex_pairs, seam_excluded)
             self.energies.append(self.barrier)
             self.drive = BodyDrive(self.barrier.contact, self.obstacles)
             if contact.mu > 0.0:
@@ -234,131 +242,42 @@ class Simulator:
         """(n_cp, 2) rest control points of all pieces, stacked."""
         return np.concatenate([p.patch.rest.reshape(-1, 2) for p in self.pieces])
 
-    def _contact_energy(self, contact) -> BarrierEnergy:
-        """IPC barrier on the pieces' embedded meshes and the obstacles."""
-        self._contact_spec = contact
-        self._W_own = sp.vstack([p.W for p in self.pieces]).tocsr()  # each piece on its own surface
-        # Seams with samples inside a patch (sim/seams.py): vertex pairs near the same
-        # sample of both sides never collide (unmerged vertex numbers).
-        self._interior_excluded = set()
-        if self.interior_seams:
-            starts = np.cumsum([0] + [p.W.shape[0] for p in self.pieces])
-            self._interior_excluded = excluded_pairs(
-                self.interior_seams, {p.name: p for p in self.pieces},
-                {p.name: int(o) for p, o in zip(self.pieces, starts)},
-                {p.name: p.topology.rest for p in self.pieces}, self.n_cp, self._rest_points())
+    def _contact_energy(self, contact, seam_vertex_pairs, seam_excluded) -> BarrierEnergy:
+        """IPC barrier on the pieces' embedded meshes and the obstacles, their seams
+        merged as they close (sim/contact/seams.py)."""
+        pairs = np.zeros((0, 2), np.int64) if seam_vertex_pairs is None else seam_vertex_pairs
+        self.seam_contact = SeamContact(self.pieces, pairs, seam_excluded, self.obstacles, contact.self_contact)
+        self.seam_contact.keep_crossings = self.keep_crossings
+        seams = self.seam_contact
         # Seams closed from the start (panels laid out edge to edge) start sewn.
-        x = self._W_own @ self.C0
-        a, b = self.seam_vertex_pairs.T
-        self.seam_pairs[np.linalg.norm(x[a] - x[b], axis=1) < contact.dhat] = 1
+        seams.state[seams.gaps(self.C0) < contact.dhat] = SEWN
+        mesh, seams.labels = seams.mesh(self.C0, seams.state)
         self._set_piece_rows()
-        mesh = self._contact_mesh(self.C0, self.seam_pairs)
         x0 = mesh.vertices(self.C0)
         if ipctk.has_intersections(mesh.mesh, x0):
             raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
         barrier = BarrierEnergy(mesh, contact.dhat, contact.kappa)
-        if len(self.seam_vertex_pairs):
-            sewn = self._contact_mesh(self.C0, np.ones(len(self.seam_vertex_pairs), np.int8))
+        if len(seams.pairs):
+            sewn, _ = seams.mesh(self.C0, np.full(len(seams.pairs), SEWN, np.int8))
             barrier.stencil_meshes = ((sewn.W, sewn.cloth_faces),)
         d = barrier.min_distance(self.C0)
         if d <= 0.0:
             raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
         return barrier
 
-    def _contact_mesh(self, C, seam_pairs: np.ndarray | None = None) -> ContactMesh:
-        """The cloth pieces' meshes and the obstacles, with the matched seam vertex pairs
-        (sim/seam_mesh.py) in state `seam_pairs` (see _merge_seams) merged, at the mean
-        of both sides, or kept out of contact around each other."""
-        faces, offset = [], 0
-        for p in self.pieces:
-            faces.append(p.topology.faces + offset)
-            offset += p.W.shape[0]
-        faces = np.concatenate(faces)
-        ids = np.concatenate([np.full(p.W.shape[0], k) for k, p in enumerate(self.pieces)])
-        excluded = set(self._interior_excluded)
-        W = self._W_own
-        if seam_pairs is not None and (seam_pairs == 2).any():
-            ring = vertex_rings(faces, offset)
-            for a, b in self.seam_vertex_pairs[seam_pairs == 2]:
-                around = np.union1d(ring[a], ring[b])
-                exclude_all(excluded, around)
-        if seam_pairs is not None and (seam_pairs == 1).any():
-            labels = merged_labels(offset, self.seam_vertex_pairs[seam_pairs == 1])
-            W = (mean_rows(labels) @ W).tocsr()
-            first = np.full(W.shape[0], -1)
-            first[labels[::-1]] = np.arange(offset)[::-1]
-            faces, ids = merged_faces(labels[faces]), ids[first]
-            excluded = {(min(i, j), max(i, j)) for i, j in ((labels[a], labels[b]) for a, b in excluded) if i != j}
-
-        def build(excluded) -> ContactMesh:
-            mesh = ContactMesh(W, faces, W @ C, self.obstacles, ids, self._contact_spec.self_contact, excluded)
-            if self.barrier is not None:  # bodies where they are now; cached contact data expire
-                mesh.move_obstacles(self.barrier.contact.obstacle_vertices.copy())
-                mesh.version = self.barrier.contact.version + 1
-            return mesh
-
-        mesh = build(excluded)
-        x = mesh.vertices(C)
-        if self.keep_crossings and ipctk.has_intersections(mesh.mesh, x):
-            # A state handed over from a coarser run (garment bench garment --refine): its
-            # finer mesh may cross where the coarse one nearly touched; leave those be.
-            mesh = build(excluded | crossing_pairs(mesh.mesh, x, mesh.n_cloth))
-        return mesh
-
     def _merge_seams(self, restore: np.ndarray | None = None) -> int:
-        """Sew the contact mesh shut where the seams have closed: every matched pair of
-        seam vertices within d_hat (the barrier kept it from closing further) becomes one
-        vertex, so the stitched panels share their seam line and stitched neighbours
-        never make a barrier; a zipper, pair by pair, as the seams close. A pair whose
-        merge would move cloth through cloth or body (a dart's or pleat's folded
-        neighbours within d_hat / 2) stays two vertices, and contact is switched off
-        between their neighbourhoods instead (`seam_pairs` 2). `restore`: the
-        `seam_pairs` state to put back (a checkpoint). Returns the pairs newly sewn."""
-        if self.barrier is None or len(self.seam_vertex_pairs) == 0:
+        """Sew the contact mesh shut where the seams have closed (SeamContact.sew);
+        `restore`: the pair states to put back (a checkpoint). Returns the pairs newly sewn."""
+        if self.barrier is None or len(self.seam_contact.pairs) == 0:
             return 0
-        state = self.seam_pairs.copy()
-        if restore is not None:
-            state = restore.astype(np.int8)
-        else:
-            x = self._W_own @ self.C
-            a, b = self.seam_vertex_pairs.T
-            state[(state == 0) & (np.linalg.norm(x[a] - x[b], axis=1) < self.barrier.dhat)] = 1
-        fresh = state != self.seam_pairs
-        if not fresh.any():
-            return 0
-        old = self.barrier.contact
-        for _ in range(3):
-            mesh = self._contact_mesh(self.C, state)
-            if restore is not None:
-                self._use_contact_mesh(mesh)
-                break
-            x = mesh.vertices(self.C)
-            if not ipctk.has_intersections(mesh.mesh, x):
-                self._use_contact_mesh(mesh)
-                if self.barrier.min_distance(self.C) > 0.0:
-                    break
-                self._use_contact_mesh(old)
-                return 0
-            # Some merged vertex moved through cloth or body: those pairs stay apart.
-            labels = merged_labels(self._W_own.shape[0], self.seam_vertex_pairs[state == 1])
-            first = labels[self.seam_vertex_pairs[:, 0]]
-            crossing = crossings_at(mesh.mesh, x, mesh.n_cloth, first[fresh & (state == 1)])
-            bad = fresh & (state == 1) & np.isin(first, crossing)
-            if not bad.any():
-                return 0
-            state[bad] = 2
-        else:
-            return 0
-        self.seam_pairs = state
-        self._set_piece_rows()
-        return int(fresh.sum())
+        fresh = self.seam_contact.sew(self.C, self.barrier, self._use_contact_mesh, restore)
+        if fresh:
+            self._set_piece_rows()
+        return fresh
 
     def _set_piece_rows(self) -> None:
-        """Exported meshes follow the contact mesh: merged seam vertices take the mean of
-        both sides, so the panels' files share them bit for bit."""
-        labels = merged_labels(self._W_own.shape[0], self.seam_vertex_pairs[self.seam_pairs == 1])
-        rows = (mean_rows(labels) @ self._W_own).tocsr()[labels]
-        start = 0
+        """Exported meshes follow the contact mesh (SeamContact.rows)."""
+        rows, start = self.seam_contact.rows(), 0
         for p in self.pieces:
             p.W = rows[start:start + p.W.shape[0]]
             start += p.W.shape[0]
@@ -473,8 +392,8 @@ class Simulator:
     # them over the pre-roll, and the rising stiffness then holds them below 1 mm. The start
     # is absolute, not a fraction of k: it is what grams of cloth across open gaps can take.
     SEAM_RAMP_START = 10.0
-    # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
-    # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
+    # Tolerate cloth crossings in the initial state (SeamContact.keep_crossings): only for
+    # states handed over from a coarser run (garment/bench/garment.py).
     keep_crossings = False
 
     def _seam_scale(self, t: float) -> float:

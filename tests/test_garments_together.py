@@ -76,7 +76,7 @@ def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
         assert ball_pairs == 0, f"garment-ball, step {step}"
         # Sewn panels share their seam vertices exactly; no other triangle pair may cross.
         assert cloth_pairs == 0, f"cloth-cloth intersection, step {step}: {cloth_pairs} pairs"
-    assert (sim.seam_pairs == 1).all() and sum(merged) == len(sim.seam_pairs)  # sewn shut in the pre-roll
+    assert (sim.seam_contact.state == 1).all() and sum(merged) == len(sim.seam_contact.state)  # sewn shut in the pre-roll
     gaps = sim.seam.samples.gaps(sim.C)
     assert gaps[inner_rows].max() < 1e-3 and gaps[~inner_rows].max() < 1e-3
     # Both rest on the ball, the outer one on the inner one: both hang below its top.

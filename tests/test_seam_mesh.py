@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from garment.scene import ContactSpec
-from sim.seam_mesh import THIN, Perimeter, matched_points, seamed_mesh
+from sim.seam_mesh import THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
 from tests.intersections import intersecting_triangles, shared_vertices, stacked_cloth
 from tests.test_seams import _two_panels
 
@@ -47,6 +47,28 @@ def test_seamed_mesh_tiles_the_rectangle_with_the_seam_vertices_on_its_boundary(
     assert steps.max() <= 1.0 + 1e-12 and steps.min() >= THIN * 0.5 - 1e-12
 
 
+def test_a_dart_running_into_the_patch_gets_its_legs_as_vertices():
+    # Like dress_knife's panel6 darts: two legs from the v = 0 side a short way in.
+    per = Perimeter(U, V, *RES)
+    step = np.array([U / (RES[0] - 1), V / (RES[1] - 1)])
+    leg_a = np.array([[1.5, 0.0], [1.7, 0.2], [1.9, 0.45], [2.0, 1.3]])
+    leg_b = np.array([[3.6, 0.0], [3.3, 0.25], [3.1, 0.5], [2.6, 1.4]])
+    pa, pb = matched_uv_points(leg_a, leg_b, step, step)
+    assert len(pa) == len(pb) and np.allclose(pa[[0, -1]], leg_a[[0, -1]]) and np.allclose(pb[-1], leg_b[-1])
+    gaps = np.linalg.norm(np.diff(pa, axis=0) / step, axis=1)
+    assert gaps.max() <= 1.0 + 1e-12 and gaps.min() >= THIN * 0.5  # thinned and subdivided
+    boundary = matched_points(np.array([12.0, 15.0]), np.array([34.0, 31.0]), per, per)
+    uv, F, (va, vb, v1, v2) = seamed_mesh(U, V, RES, [pa, pb, *boundary])
+    _check_tiling(uv, F)
+    np.testing.assert_allclose(uv[va], pa, atol=1e-12)
+    np.testing.assert_allclose(uv[vb], pb, atol=1e-12)
+    np.testing.assert_allclose(uv[v1], per.uv(boundary[0]), atol=1e-12)
+    assert len(set(va) | set(vb)) == len(va) + len(vb)  # every leg point its own vertex
+    # Each leg is a line of mesh edges, so a closed dart folds along it.
+    E = {tuple(sorted(e)) for f in F.tolist() for e in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
+    assert all(tuple(sorted(e)) in E for leg in (va, vb) for e in zip(leg[:-1], leg[1:]))
+
+
 def test_matched_points_keep_corners_and_pair_both_sides():
     per = Perimeter(U, V, *RES)
     c = per.corners[3]  # (0, V)
@@ -61,12 +83,12 @@ def test_matched_points_keep_corners_and_pair_both_sides():
 def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
     sim = _two_panels(0.03)
     merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(6)]
-    n = len(sim.seam_vertex_pairs)
-    assert merged == [0, n, 0, 0, 0, 0] and (sim.seam_pairs == 1).all()  # shut once all are within d_hat
+    n = len(sim.seam_contact.pairs)
+    assert merged == [0, n, 0, 0, 0, 0] and (sim.seam_contact.state == 1).all()  # shut once all are within d_hat
     # Matched vertices now are one contact vertex and export the same position bit for bit.
     W, F, _ = stacked_cloth(sim.pieces)
     x = W @ sim.C
-    a, b = sim.seam_vertex_pairs.T
+    a, b = sim.seam_contact.pairs.T
     assert np.array_equal(x[a], x[b])
     assert sim.barrier.contact.n_cloth == len(x) - len(a)
     # No barrier between stitched neighbours, none needed anywhere else, nothing crosses.
@@ -85,7 +107,7 @@ def test_resume_after_the_seams_merged(tmp_path):
     ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim, 3, "sewn"))
     resumed = _two_panels(0.03)
     restore(resumed, ck.state)
-    assert (resumed.seam_pairs == 1).all()
+    assert (resumed.seam_contact.state == 1).all()
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)
@@ -94,6 +116,6 @@ def test_resume_after_the_seams_merged(tmp_path):
 def test_band_seams_keep_grids_and_exclude_pairs_near_the_seam():
     merged = _two_panels(0.03)
     band = _two_panels(0.03, contact=ContactSpec(enabled=True, adaptive_kappa=True, seams="band"))
-    assert len(band.seam_vertex_pairs) == 0 and len(band.interior_seams) == 1
+    assert len(band.seam_contact.pairs) == 0 and band.seam_contact.excluded
     assert [len(p.topology.faces) for p in band.pieces] == [2 * 10 * 10] * 2  # the plain 11 x 11 grids
-    assert len(merged.seam_vertex_pairs) > 0 and not merged.interior_seams
+    assert len(merged.seam_contact.pairs) > 0 and not merged.seam_contact.excluded

@@ -143,8 +143,6 @@ class LinearSimulator(Simulator):
         # No seams between linear cloths (Simulator's seam attributes, switched off).
         self.seams, self.seam, self.seam_ramp, self.seam_stiffness = [], None, 0.0, 0.0
         self.quasistatic_sewing, self.seam_multipliers = False, False
-        self.interior_seams, self.seam_vertex_pairs = [], np.zeros((0, 2), np.int64)
-        self.seam_pairs = np.zeros(0, np.int8)
 
         self.C0 = np.concatenate([np.asarray(w, float) for w in worlds])
         self._finish(contact, obstacles, materials, gravity)

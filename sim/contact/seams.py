@@ -1,0 +1,131 @@
+"""Seams in the contact mesh: matched seam vertices that merge as the seams close.
+
+A sewn piece's mesh carries the matched points of its seams (sim/seam_mesh.py). Each
+matched pair that comes within d_hat becomes one contact vertex at the mean of both sides,
+pair by pair, as a zipper: the stitched panels then share their seam line, so stitched
+neighbours never make a barrier (ipctk never pairs primitives that share a vertex) while
+everything else near the seam keeps its barrier. A pair whose merge would move cloth
+through cloth or body (a dart's or pleat's folded neighbours within d_hat / 2) stays two
+vertices, and contact is switched off between their neighbourhoods instead.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import ipctk
+import numpy as np
+import scipy.sparse as sp
+
+from ..seam_mesh import exclude_all, mean_rows, merged_faces, merged_labels, vertex_rings
+from .mesh import ContactMesh, crossing_pairs, crossings_at
+
+OPEN, SEWN, APART = 0, 1, 2  # states of a matched pair
+
+
+class SeamContact:
+    """The cloth part of the contact mesh and its seams.
+
+    pieces: sim.simulator.Piece (own W and faces); pairs (P, 2): matched seam vertices
+    (global cloth-vertex indices); excluded: cloth vertex pairs (i < j) that never collide
+    (seams with no matched vertices, contact.seams = "band")."""
+
+    # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
+    # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
+    keep_crossings = False
+
+    def __init__(self, pieces, pairs: np.ndarray, excluded: set, obstacles, self_contact: bool):
+        self.W_own = sp.vstack([p.W for p in pieces]).tocsr()  # each piece on its own surface
+        self.n = self.W_own.shape[0]
+        starts = np.cumsum([0] + [p.W.shape[0] for p in pieces])
+        self.faces = np.concatenate([p.topology.faces + s for p, s in zip(pieces, starts)])
+        self.ids = np.repeat(np.arange(len(pieces)), np.diff(starts))
+        self.pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+        self.state = np.zeros(len(self.pairs), np.int8)
+        self.labels = np.arange(self.n)  # contact vertex of each cloth vertex
+        self.excluded = set(excluded)
+        self.obstacles = list(obstacles)
+        self.self_contact = self_contact
+        self._rings = None
+
+    def gaps(self, C: np.ndarray) -> np.ndarray:
+        """(P,) distance between the two sides of every matched pair."""
+        x = self.W_own @ C
+        return np.linalg.norm(x[self.pairs[:, 0]] - x[self.pairs[:, 1]], axis=1)
+
+    def rows(self) -> sp.csr_matrix:
+        """(n, n_cp) interpolation of every cloth vertex, merged ones at the mean of their
+        class: the exported meshes share merged seam vertices bit for bit."""
+        return (mean_rows(self.labels) @ self.W_own).tocsr()[self.labels]
+
+    def mesh(self, C: np.ndarray, state: np.ndarray, like: ContactMesh | None = None):
+        """The contact mesh with the pairs in `state` merged (SEWN) or kept out of contact
+        around each other (APART); bodies where they are in `like`. Returns the mesh and
+        the merge labels."""
+        excluded = set(self.excluded)
+        if (state == APART).any():
+            if self._rings is None:
+                self._rings = vertex_rings(self.faces, self.n)
+            for a, b in self.pairs[state == APART]:
+                exclude_all(excluded, np.union1d(self._rings[a], self._rings[b]))
+        labels = merged_labels(self.n, self.pairs[state == SEWN])
+        W, faces, ids = self.W_own, self.faces, self.ids
+        if (state == SEWN).any():
+            W = (mean_rows(labels) @ W).tocsr()
+            first = np.full(W.shape[0], -1)
+            first[labels[::-1]] = np.arange(self.n)[::-1]
+            faces, ids = merged_faces(labels[faces]), ids[first]
+            excluded = {(min(i, j), max(i, j)) for i, j in ((labels[a], labels[b]) for a, b in excluded) if i != j}
+
+        def build(excluded) -> ContactMesh:
+            mesh = ContactMesh(W, faces, W @ C, self.obstacles, ids, self.self_contact, excluded)
+            if like is not None:  # cached contact data expire
+                mesh.move_obstacles(like.obstacle_vertices.copy())
+                mesh.version = like.version + 1
+            return mesh
+
+        mesh = build(excluded)
+        x = mesh.vertices(C)
+        if self.keep_crossings and ipctk.has_intersections(mesh.mesh, x):
+            # A state handed over from a coarser run (garment bench garment --refine): its
+            # finer mesh may cross where the coarse one nearly touched; leave those be.
+            mesh = build(excluded | crossing_pairs(mesh.mesh, x, mesh.n_cloth))
+        return mesh, labels
+
+    def sew(self, C: np.ndarray, barrier, use: Callable[[ContactMesh], None],
+            restore: np.ndarray | None = None) -> int:
+        """Merge every open pair within d_hat of the barrier (or put back the state
+        `restore`, from a checkpoint), installing the new mesh with `use`. Pairs whose
+        merge crosses cloth or body become APART. Returns the pairs newly sewn."""
+        state = self.state.copy()
+        if restore is not None:
+            state = restore.astype(np.int8)
+        else:
+            state[(state == OPEN) & (self.gaps(C) < barrier.dhat)] = SEWN
+        fresh = state != self.state
+        if not fresh.any():
+            return 0
+        old = barrier.contact
+        for _ in range(3):
+            mesh, labels = self.mesh(C, state, like=old)
+            if restore is not None:
+                use(mesh)
+                break
+            x = mesh.vertices(C)
+            if not ipctk.has_intersections(mesh.mesh, x):
+                use(mesh)
+                if barrier.min_distance(C) > 0.0:
+                    break
+                use(old)
+                return 0
+            # Some merged vertex moved through cloth or body: those pairs stay apart.
+            first = labels[self.pairs[:, 0]]
+            crossing = crossings_at(mesh.mesh, x, mesh.n_cloth, first[fresh & (state == SEWN)])
+            bad = fresh & (state == SEWN) & np.isin(first, crossing)
+            if not bad.any():
+                return 0
+            state[bad] = APART
+        else:
+            return 0
+        self.state, self.labels = state, labels
+        return int(fresh.sum())
