@@ -93,7 +93,7 @@ def restore(sim, s: SimState) -> None:
         sim.seam.multipliers = s.seam_multipliers.copy()
         if s.seam_gaps is not None:
             sim.seam.last_gaps = s.seam_gaps.copy()
-    if s.seam_pairs is not None and s.seam_pairs.any():
+    if s.seam_pairs is not None:  # also back to fewer merged pairs (a retried step)
         sim._merge_seams(restore=s.seam_pairs)
 
 

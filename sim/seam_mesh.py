@@ -28,6 +28,7 @@ from .embedding import grid_faces
 
 THIN = 0.5  # keep seam samples at least this many grid steps apart (on both sides)
 CLEAR = 0.35  # drop grid boundary vertices closer than this (grid steps) to a seam vertex
+SNAP = 0.2  # seam points closer than this (grid steps) share one vertex
 
 
 class Perimeter:
@@ -159,18 +160,30 @@ def seamed_mesh(U: float, V: float, resolution: tuple[int, int], sides: list[np.
     L = per.length
     # Outer loop (seam vertices, then the grid's boundary vertices clear of every seam)
     # and interior seam points, each found by position.
-    outer: dict[float, int] = {}
-    inner: dict[tuple[float, float], int] = {}
+    # A point within SNAP grid steps of one already placed (where one seam ends and the
+    # next begins) is that vertex: a shorter edge than d_hat would make a barrier between
+    # a vertex and its own neighbour's edge, which no motion can relieve.
+    outer_g, inner_uv = [], []
+    step = _step(per)
 
     def vertex(g: float) -> int:
         g = float(np.mod(g, L))
-        key = 0.0 if abs(g - L) < 1e-9 else round(g, 9)
-        return outer.setdefault(key, len(outer))
+        if outer_g:
+            d = np.abs((np.asarray(outer_g) - g + L / 2) % L - L / 2)
+            if d.min() < SNAP:
+                return int(d.argmin())
+        outer_g.append(g)
+        return len(outer_g) - 1
 
     def point(uv: np.ndarray) -> int:
         if per.on_boundary(uv[None]):
             return vertex(per.g(uv[None])[0])
-        return -1 - inner.setdefault((round(uv[0], 12), round(uv[1], 12)), len(inner))
+        if inner_uv:
+            d = np.linalg.norm((np.asarray(inner_uv) - uv) / step, axis=1)
+            if d.min() < SNAP:
+                return -1 - int(d.argmin())
+        inner_uv.append(uv)
+        return -len(inner_uv)
 
     seam_vertices = [np.array([vertex(g) for g in side] if side.ndim == 1 else [point(p) for p in side], np.int64)
                      for side in sides]
@@ -183,15 +196,13 @@ def seamed_mesh(U: float, V: float, resolution: tuple[int, int], sides: list[np.
                 # Strictly inside a seam interval (unwrapped, so compare modulo L).
                 for shift in (-L, 0.0, L):
                     covered |= (regular + shift > lo + 1e-9) & (regular + shift < hi - 1e-9)
-    outer_g = np.fromiter(outer, float, len(outer))
-    near = np.abs((regular[:, None] - outer_g[None, :] + L / 2) % L - L / 2).min(axis=1, initial=np.inf)
+    near = np.abs((regular[:, None] - np.array(outer_g)[None, :] + L / 2) % L - L / 2).min(axis=1, initial=np.inf)
     covered |= near < CLEAR
     for g in regular[~covered]:
         vertex(g)
-    outer_g = np.fromiter(outer, float, len(outer))
-    inner_uv = np.array(list(inner), float).reshape(-1, 2)
+    outer_g, inner_uv = np.array(outer_g), np.array(inner_uv, float).reshape(-1, 2)
 
-    grid_uv, faces = _delaunay(per, outer_g, inner_uv) if len(inner) else _zipped_ring(per, outer_g)
+    grid_uv, faces = _delaunay(per, outer_g, inner_uv) if len(inner_uv) else _zipped_ring(per, outer_g)
     n_grid = len(grid_uv)
     uv = np.concatenate([grid_uv, per.uv(outer_g), inner_uv])
     ids = [np.where(v >= 0, n_grid + v, n_grid + len(outer_g) - 1 - v) for v in seam_vertices]
