@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from garment.scene import ContactSpec
-from sim.seam_mesh import THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
+from sim.seam_mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
 from tests.intersections import intersecting_triangles, shared_vertices, stacked_cloth
 from tests.test_seams import _two_panels
 
@@ -67,6 +67,20 @@ def test_a_dart_running_into_the_patch_gets_its_legs_as_vertices():
     # Each leg is a line of mesh edges, so a closed dart folds along it.
     E = {tuple(sorted(e)) for f in F.tolist() for e in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))}
     assert all(tuple(sorted(e)) in E for leg in (va, vb) for e in zip(leg[:-1], leg[1:]))
+
+
+def test_seams_meeting_at_a_junction_share_its_vertex():
+    # One seam ends where the next begins, to within a fraction of a grid step (as
+    # conformed panels' seams do): one vertex, no edge shorter than the contact distance.
+    per = Perimeter(U, V, *RES)
+    first, _ = matched_points(np.array([2.0, 5.0]), np.array([20.0, 17.0]), per, per)
+    second, _ = matched_points(np.array([5.0 + 0.5 * SNAP, 8.0]), np.array([30.0, 27.0]), per, per)
+    uv, F, (va, vb) = seamed_mesh(U, V, RES, [first, second])
+    _check_tiling(uv, F)
+    assert va[-1] == vb[0]
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    steps = np.array([U / (RES[0] - 1), V / (RES[1] - 1)])
+    assert np.linalg.norm((uv[e[:, 0]] - uv[e[:, 1]]) / steps, axis=1).min() > SNAP
 
 
 def test_matched_points_keep_corners_and_pair_both_sides():
