@@ -246,9 +246,8 @@ class Simulator:
         """IPC barrier on the pieces' embedded meshes and the obstacles, their seams
         merged as they close (sim/contact/seams.py)."""
         pairs = np.zeros((0, 2), np.int64) if seam_vertex_pairs is None else seam_vertex_pairs
-        self.seam_contact = SeamContact(self.pieces, pairs, seam_excluded, self.obstacles, contact.self_contact)
-        self.seam_contact.keep_crossings = self.keep_crossings
-        seams = self.seam_contact
+        seams = self.seam_contact = SeamContact(self.pieces, pairs, seam_excluded, self.obstacles,
+                                                contact.self_contact, self.keep_crossings)
         # Seams closed from the start (panels laid out edge to edge) start sewn.
         seams.state[seams.gaps(self.C0) < contact.dhat] = SEWN
         mesh, seams.labels = seams.mesh(self.C0, seams.state)
@@ -392,8 +391,8 @@ class Simulator:
     # them over the pre-roll, and the rising stiffness then holds them below 1 mm. The start
     # is absolute, not a fraction of k: it is what grams of cloth across open gaps can take.
     SEAM_RAMP_START = 10.0
-    # Tolerate cloth crossings in the initial state (SeamContact.keep_crossings): only for
-    # states handed over from a coarser run (garment/bench/garment.py).
+    # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
+    # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
     keep_crossings = False
 
     def _seam_scale(self, t: float) -> float:

@@ -28,13 +28,11 @@ class SeamContact:
 
     pieces: sim.simulator.Piece (own W and faces); pairs (P, 2): matched seam vertices
     (global cloth-vertex indices); excluded: cloth vertex pairs (i < j) that never collide
-    (seams with no matched vertices, contact.seams = "band")."""
+    (seams with no matched vertices, contact.seams = "band"); keep_crossings: exclude the
+    cloth crossings of every mesh built from contact (Simulator.keep_crossings)."""
 
-    # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
-    # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
-    keep_crossings = False
-
-    def __init__(self, pieces, pairs: np.ndarray, excluded: set, obstacles, self_contact: bool):
+    def __init__(self, pieces, pairs: np.ndarray, excluded: set, obstacles, self_contact: bool,
+                 keep_crossings: bool = False):
         self.W_own = sp.vstack([p.W for p in pieces]).tocsr()  # each piece on its own surface
         self.n = self.W_own.shape[0]
         starts = np.cumsum([0] + [p.W.shape[0] for p in pieces])
@@ -46,6 +44,7 @@ class SeamContact:
         self.excluded = set(excluded)
         self.obstacles = list(obstacles)
         self.self_contact = self_contact
+        self.keep_crossings = keep_crossings
         self._rings = None
 
     def gaps(self, C: np.ndarray) -> np.ndarray:
