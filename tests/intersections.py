@@ -25,8 +25,7 @@ def stacked_cloth(pieces) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
 
 
 def _segments_hit_triangles(p, q, a, b, c, eps=1e-14):
-    """Vectorised: does segment p->q cross triangle abc (all (N, 3))? Also returns the
-    crossing's parameter t along p->q."""
+    """Vectorised: does segment p->q cross triangle abc (all (N, 3))?"""
     d = q - p
     e1, e2 = b - a, c - a
     h = np.cross(d, e2)
@@ -38,7 +37,7 @@ def _segments_hit_triangles(p, q, a, b, c, eps=1e-14):
     qv = np.cross(s, e1)
     v = f * np.einsum("ij,ij->i", d, qv)
     t = f * np.einsum("ij,ij->i", e2, qv)
-    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1), t
+    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)
 
 
 def intersecting_pairs(V1, F1, V2=None, F2=None, chunk=200_000) -> int:
@@ -78,13 +77,12 @@ def intersecting_triangles(V1, F1, V2=None, F2=None, chunk=200_000) -> np.ndarra
         hit = np.zeros(len(A), bool)
         for e in range(3):
             p, q = A[:, e], A[:, (e + 1) % 3]
-            hit |= _segments_hit_triangles(p, q, B[:, 0], B[:, 1], B[:, 2])[0]
+            hit |= _segments_hit_triangles(p, q, B[:, 0], B[:, 1], B[:, 2])
             p, q = B[:, e], B[:, (e + 1) % 3]
-            hit |= _segments_hit_triangles(p, q, A[:, 0], A[:, 1], A[:, 2])[0]
+            hit |= _segments_hit_triangles(p, q, A[:, 0], A[:, 1], A[:, 2])
         hits.append(np.nonzero(hit)[0] + s)
     k = np.concatenate(hits) if hits else np.zeros(0, np.int64)
     return np.stack([I[k], J[k]], axis=1)
-
 
 
 def shared_vertices(V, F) -> tuple[np.ndarray, np.ndarray]:
