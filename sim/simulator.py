@@ -251,7 +251,7 @@ class Simulator:
         # Seams closed from the start (panels laid out edge to edge) start sewn.
         seams.state[seams.gaps(self.C0) < contact.dhat] = SEWN
         mesh, seams.labels = seams.mesh(self.C0, seams.state)
-        self._set_piece_rows()
+        self._set_piece_rows(mesh)
         x0 = mesh.vertices(self.C0)
         if ipctk.has_intersections(mesh.mesh, x0):
             raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
@@ -271,12 +271,12 @@ class Simulator:
             return 0
         fresh = self.seam_contact.sew(self.C, self.barrier, self._use_contact_mesh, restore)
         if fresh:
-            self._set_piece_rows()
+            self._set_piece_rows(self.barrier.contact)
         return fresh
 
-    def _set_piece_rows(self) -> None:
+    def _set_piece_rows(self, mesh: ContactMesh) -> None:
         """Exported meshes follow the contact mesh (SeamContact.rows)."""
-        rows, start = self.seam_contact.rows(), 0
+        rows, start = self.seam_contact.rows(mesh), 0
         for p in self.pieces:
             p.W = rows[start:start + p.W.shape[0]]
             start += p.W.shape[0]

@@ -52,10 +52,11 @@ class SeamContact:
         x = self.W_own @ C
         return np.linalg.norm(x[self.pairs[:, 0]] - x[self.pairs[:, 1]], axis=1)
 
-    def rows(self) -> sp.csr_matrix:
-        """(n, n_cp) interpolation of every cloth vertex, merged ones at the mean of their
-        class: the exported meshes share merged seam vertices bit for bit."""
-        return (mean_rows(self.labels) @ self.W_own).tocsr()[self.labels]
+    def rows(self, mesh: ContactMesh) -> sp.csr_matrix:
+        """(n, n_cp) interpolation of every cloth vertex as in `mesh` (built for the current
+        state): merged ones at the mean of their class, so the exported meshes share merged
+        seam vertices bit for bit."""
+        return mesh.W[self.labels]
 
     def mesh(self, C: np.ndarray, state: np.ndarray, like: ContactMesh | None = None):
         """The contact mesh with the pairs in `state` merged (SEWN) or kept out of contact
@@ -96,20 +97,22 @@ class SeamContact:
         """Merge every open pair within d_hat of the barrier (or put back the state
         `restore`, from a checkpoint), installing the new mesh with `use`. Pairs whose
         merge crosses cloth or body become APART. Returns the pairs newly sewn."""
-        state = self.state.copy()
+        old = barrier.contact
         if restore is not None:
             state = restore.astype(np.int8)
-        else:
-            state[(state == OPEN) & (self.gaps(C) < barrier.dhat)] = SEWN
+            fresh = state != self.state
+            if fresh.any():
+                mesh, self.labels = self.mesh(C, state, like=old)
+                use(mesh)
+                self.state = state
+            return int(fresh.sum())
+        state = self.state.copy()
+        state[(state == OPEN) & (self.gaps(C) < barrier.dhat)] = SEWN
         fresh = state != self.state
         if not fresh.any():
             return 0
-        old = barrier.contact
         for _ in range(3):
             mesh, labels = self.mesh(C, state, like=old)
-            if restore is not None:
-                use(mesh)
-                break
             x = mesh.vertices(C)
             if not ipctk.has_intersections(mesh.mesh, x):
                 use(mesh)
