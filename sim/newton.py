@@ -25,6 +25,7 @@ class NewtonOptions:
     armijo: float = 1e-4
     min_step: float = 1e-12
     project: bool | str = "auto"  # True: always PSD-project; "auto": only when not PD
+    projection: str = "clamp"  # how projected Hessians treat negative eigenvalues (energies/base.py)
     record_gradients: bool = False  # keep ||g_free|| per iteration (convergence tests)
     pcg_rtol: float = 1e-8  # CG on the exact Hessian when contact couplings leave the pattern
     pcg_max_iterations: int = 30  # an early stop still gives a descent direction
@@ -57,7 +58,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         # only when a factorization fails is the PSD-projected Hessian assembled instead,
         # and the exact one retried after 1, 2, 4, ... iterations (a failed attempt costs
         # a factorization).
-        ip.assemble(C, project=not try_exact and bool(opts.project))
+        ip.assemble(C, project=bool(opts.project) and not try_exact and opts.projection)
         stats.t_assembly += time.perf_counter() - t0
         p = _direction(ip, C, g, drive if moving else None, opts, stats, allow_fail=try_exact)
         if try_exact:
@@ -65,7 +66,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if p is None:
             stats.extra["exact_failures"] = stats.extra.get("exact_failures", 0) + 1
             t1 = time.perf_counter()
-            ip.assemble(C, project=True)
+            ip.assemble(C, project=opts.projection)
             stats.t_assembly += time.perf_counter() - t1
             p = _direction(ip, C, g, drive if moving else None, opts, stats, allow_fail=False)
         t3 = time.perf_counter()

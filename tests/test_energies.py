@@ -12,6 +12,7 @@ from garment.model import Patch
 from sim.assembly import BlockPattern, deformation_gradients
 from sim.energies import (BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW,
                           MembraneStVK)
+from sim.energies.base import projection_code
 from sim.energies.membrane_fbw import fbw_density
 from sim.energies.membrane_stvk import stvk_density
 from sim.quadrature import gauss, membrane_rule, span_centres
@@ -203,14 +204,15 @@ def test_pinned_assembly_is_restricted_hessian(name):
 # ------------------------------------------------------------------ projection
 
 
+@pytest.mark.parametrize("projection", ("clamp", "abs"))
 @pytest.mark.parametrize("name", ("fbw-reduced", "fbw-gauss2", "stvk-reduced", "stvk-gauss2"))
-def test_projected_hessian_is_psd(name):
+def test_projected_hessian_is_psd(name, projection):
     X = rest_net("rectangle")
     e = make_energy(name, X, shear_factor=50.0)
     pattern = bound(e)
     for C in states(X, np.random.default_rng(11), ("compressed", "sheared")):
         raw = np.linalg.eigvalsh(hessian(e, pattern, C, project=False))
-        proj = np.linalg.eigvalsh(hessian(e, pattern, C, project=True))
+        proj = np.linalg.eigvalsh(hessian(e, pattern, C, project=projection))
         scale = np.abs(raw).max()
         assert raw.min() < -1e-3 * scale  # the state really is indefinite ...
         assert proj.min() >= -1e-10 * scale  # ... and projection fixed it
@@ -224,17 +226,22 @@ def clamp(H):
     return (V * np.maximum(lam, 0.0)) @ V.T
 
 
-def per_term_clamped(F, kst, ksh):
-    """Sum of the eigen-clamped exact Hessians of the three FBW terms, numerically."""
+def absolute(H):
+    lam, V = np.linalg.eigh(H)
+    return (V * np.abs(lam)) @ V.T
+
+
+def per_term_projected(F, kst, ksh, fix=clamp):
+    """Sum of the eigen-fixed (clamped or abs) exact Hessians of the three FBW terms."""
     f1, f2 = F[:, 0], F[:, 1]
     H = np.zeros((6, 6))
     for off, f in ((0, f1), (3, f2)):
         l = np.linalg.norm(f)
         nn = np.outer(f, f) / l**2
-        H[off:off + 3, off:off + 3] += clamp(2 * kst * (nn + (1 - 1 / l) * (np.eye(3) - nn)))
+        H[off:off + 3, off:off + 3] += fix(2 * kst * (nn + (1 - 1 / l) * (np.eye(3) - nn)))
     g = np.concatenate([f2, f1])
     S = np.block([[np.zeros((3, 3)), np.eye(3)], [np.eye(3), np.zeros((3, 3))]])
-    H += clamp(2 * ksh * (np.outer(g, g) + (f1 @ f2) * S))
+    H += fix(2 * ksh * (np.outer(g, g) + (f1 @ f2) * S))
     return H
 
 
@@ -252,19 +259,21 @@ def fbw_point_Fs(rng):
     return np.array(Fs)
 
 
-def test_fbw_analytic_projection_equals_per_term_eigen_clamp():
+@pytest.mark.parametrize("projection", ("clamp", "abs"))
+def test_fbw_analytic_projection_equals_per_term_eigen_fix(projection):
     rng = np.random.default_rng(2)
     F = fbw_point_Fs(rng)
     Q = F.shape[0]
     params = np.tile([3.0, 0.7], (Q, 1))
     psi, P, H = np.zeros(Q), np.zeros((Q, 3, 2)), np.zeros((Q, 6, 6))
-    fbw_density(np.ascontiguousarray(F), params, True, psi, P, H)
+    fbw_density(np.ascontiguousarray(F), params, projection_code(projection), psi, P, H)
+    fix = clamp if projection == "clamp" else absolute
     for q in range(Q):
-        ref = per_term_clamped(F[q], 3.0, 0.7)
+        ref = per_term_projected(F[q], 3.0, 0.7, fix)
         assert np.abs(H[q] - ref).max() < 1e-8 * max(1.0, np.abs(ref).max()), q
         assert np.linalg.eigvalsh(H[q]).min() > -1e-10 * np.abs(H[q]).max()
     # Unprojected, the kernel returns the exact Hessian (checked against the same algebra).
-    fbw_density(np.ascontiguousarray(F), params, False, psi, P, H)
+    fbw_density(np.ascontiguousarray(F), params, 0, psi, P, H)
     for q in range(Q):
         f1, f2 = F[q, :, 0], F[q, :, 1]
         expect = 3.0 * ((np.linalg.norm(f1) - 1) ** 2 + (np.linalg.norm(f2) - 1) ** 2) + 0.7 * (f1 @ f2) ** 2
@@ -282,7 +291,7 @@ def test_density_derivatives_match_finite_differences(kernel):
 
     def run(Fx):
         psi, P, H = np.zeros(Q), np.zeros((Q, 3, 2)), np.zeros((Q, 6, 6))
-        density(np.ascontiguousarray(Fx), params, False, psi, P, H)
+        density(np.ascontiguousarray(Fx), params, 0, psi, P, H)
         return psi, P, H
 
     psi, P, H = run(F)

@@ -12,6 +12,22 @@ import numpy as np
 
 from ..assembly import BlockPattern
 
+#: PSD projections of an element Hessian: negative eigenvalues set to zero ("clamp", IPC's)
+#: or to their magnitude ("abs", Chen et al. 2024, "Positive-Definite Fixes for Second-Order
+#: Optimization": it keeps curvature in compressed directions, so steps overshoot less).
+PROJECTIONS = ("clamp", "abs")
+
+
+def projection_code(project: bool | str) -> int:
+    """`project` as numba kernels take it: 0 exact, 1 clamp (also True), 2 abs."""
+    if project is False or project is None:
+        return 0
+    if project is True:
+        return 1
+    if project not in PROJECTIONS:
+        raise ValueError(f"projection must be one of {PROJECTIONS}, not {project!r}")
+    return 1 + PROJECTIONS.index(project)
+
 
 class Energy:
     #: True when the Hessian does not depend on C (it is then assembled once per pattern).
@@ -38,8 +54,9 @@ class Energy:
     def add_gradient(self, C: np.ndarray, out: np.ndarray) -> None:
         raise NotImplementedError
 
-    def add_hessian(self, C: np.ndarray, data: np.ndarray, project: bool = True) -> None:
-        """Add the (PSD-projected when `project`) Hessian into pattern data."""
+    def add_hessian(self, C: np.ndarray, data: np.ndarray, project: bool | str = True) -> None:
+        """Add the Hessian into pattern data, exact or PSD-projected (`project` is False,
+        True = "clamp", or "abs"; see PROJECTIONS)."""
         raise NotImplementedError
 
     def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:

@@ -13,7 +13,9 @@ import ipctk
 import numpy as np
 import scipy.sparse as sp
 
-from .base import Energy
+from .base import Energy, projection_code
+
+_METHODS = (ipctk.PSDProjectionMethod.NONE, ipctk.PSDProjectionMethod.CLAMP, ipctk.PSDProjectionMethod.ABS)
 
 
 class ContactEnergy(Energy):
@@ -29,7 +31,7 @@ class ContactEnergy(Energy):
 
     def _vertex_hessian(self, C, project=True):
         """The vertex Hessian at C, or None; keeps its cloth x obstacle block."""
-        method = ipctk.PSDProjectionMethod.CLAMP if project else ipctk.PSDProjectionMethod.NONE
+        method = _METHODS[projection_code(project)]
         H = self._ipctk_hessian(C, method)
         n = 3 * self.contact.n_cloth
         self._H_cb = None if H is None else H.tocsr()[:n, n:]

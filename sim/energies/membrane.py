@@ -2,7 +2,7 @@
 
 A concrete model supplies one numba kernel, `density(F, params, project, psi, P, H)`,
 filling per point the energy density psi (Q,), its first derivative P = dPsi/dF (Q, 3, 2)
-and its (optionally PSD-projected) second derivative H (Q, 6, 6) in the column-stacked
+and its second derivative H (Q, 6, 6), exact (project 0) or PSD-projected (1 clamp, 2 abs), in the column-stacked
 layout [F e1; F e2]. This module turns those into energy, gradient and Hessian blocks on
 the control points through the precomputed stencils and gather maps.
 """
@@ -13,7 +13,7 @@ import numpy as np
 
 from ..assembly import deformation_gradients, gather_gradient_F, gather_hessian_F, gather_map
 from ..rest import PointData
-from .base import Energy
+from .base import Energy, projection_code
 
 
 class MembraneEnergy(Energy):
@@ -41,7 +41,7 @@ class MembraneEnergy(Energy):
 
     def _evaluate(self, C, project):
         deformation_gradients(C, self.points.idx, self.points.g, self._F)
-        type(self).density(self._F, self.params, project, self._psi, self._P, self._H)
+        type(self).density(self._F, self.params, projection_code(project), self._psi, self._P, self._H)
 
     def value(self, C):
         self._evaluate(C, False)

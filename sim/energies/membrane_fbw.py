@@ -5,7 +5,8 @@ k_st = E_st / (2 (1 + nu)), k_sh = (E_sh / E_st) k_st (garment/materials.py).
 
 The Hessian is projected to PSD analytically, term by term (a sum of PSD parts is PSD):
 - stretch: d2/df2 of k(|f| - 1)^2 = 2k [f^ f^T + (1 - 1/|f|)(I - f^ f^T)]: clamp the
-  second eigenvalue at 0 (it is negative under compression);
+  second eigenvalue at 0, or flip its sign (project 2, "abs"; it is negative under
+  compression);
 - shear: 2k (g g^T + I6 S) with g = [f2; f1] and S = [[0, I], [I, 0]]. S splits R^6 into
   its +1 space (p = P+ g) and -1 space (m = P- g); on span{p^, m^} the Hessian is the 2x2
   matrix [[|p|^2 + I6, |p||m|], [|p||m|, |m|^2 - I6]], on the rest of the +1 / -1 spaces
@@ -42,7 +43,7 @@ def _stretch(f, k, project, P_col, H, off):
         P_col[d] = 2.0 * k * (l - 1.0) * f[d] / l
     lam_perp = 1.0 - 1.0 / l
     if project and lam_perp < 0.0:
-        lam_perp = 0.0
+        lam_perp = 0.0 if project == 1 else -lam_perp
     for i in range(3):
         for j in range(3):
             nn = f[i] * f[j] / (l * l)
@@ -87,7 +88,7 @@ def _shear(f1, f2, k, project, P, H):
     rad = np.sqrt(0.25 * (a - c) ** 2 + b * b)
     for sign in (1.0, -1.0):
         lam = mean + sign * rad
-        if lam <= 0.0:
+        if lam <= 0.0 and project == 1:
             continue
         # Eigenvector of [[a, b], [b, c]] for lam.
         if abs(b) > _EPS * (abs(a) + abs(c) + 1.0):
@@ -100,18 +101,19 @@ def _shear(f1, f2, k, project, P, H):
         e = (ex * ph + ey * mh) / nrm
         for i in range(6):
             for j in range(6):
-                H[i, j] += 2.0 * k * lam * e[i] * e[j]
-    # Remaining +1 space (eigenvalue I6) or -1 space (eigenvalue -I6), whichever is >= 0.
-    if I6 > 0.0:
+                H[i, j] += 2.0 * k * abs(lam) * e[i] * e[j]
+    # Remaining +1 space (eigenvalue I6) and -1 space (eigenvalue -I6): clamping keeps
+    # whichever is >= 0, abs keeps both at |I6|.
+    if I6 > 0.0 or project == 2:
         for i in range(6):
             for j in range(6):
                 proj = 0.5 * ((1.0 if i == j else 0.0) + (1.0 if abs(i - j) == 3 else 0.0))
-                H[i, j] += 2.0 * k * I6 * (proj - ph[i] * ph[j])
-    elif I6 < 0.0:
+                H[i, j] += 2.0 * k * abs(I6) * (proj - ph[i] * ph[j])
+    if I6 < 0.0 or project == 2:
         for i in range(6):
             for j in range(6):
                 proj = 0.5 * ((1.0 if i == j else 0.0) - (1.0 if abs(i - j) == 3 else 0.0))
-                H[i, j] += -2.0 * k * I6 * (proj - mh[i] * mh[j])
+                H[i, j] += 2.0 * k * abs(I6) * (proj - mh[i] * mh[j])
     return psi
 
 

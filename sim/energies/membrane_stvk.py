@@ -42,7 +42,7 @@ def stvk_density(F, params, project, psi, P, H):
         if project:
             vals, vecs = np.linalg.eigh(Hq)
             if vals[0] < 0.0:
-                Hq = (vecs * np.maximum(vals, 0.0)) @ vecs.T
+                Hq = (vecs * (np.maximum(vals, 0.0) if project == 1 else np.abs(vals))) @ vecs.T
         H[q] = Hq
 
 
