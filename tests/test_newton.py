@@ -257,3 +257,44 @@ def test_neumann_series_converges_when_the_splitting_contracts():
     inv = 1.0 / np.diag(M)
     x, k, ok = neumann(lambda v: A @ v, b, lambda r: inv * r, inv * b, 1e-12, 200)
     assert ok and k < 60 and np.linalg.norm(A @ x - b) <= 1e-12 * np.linalg.norm(b)
+
+
+def test_merged_solver_reuses_its_analysis_while_outside_entries_fit():
+    """(A - diag(d) + E) x = b for a banded A and outside entries E that come and go:
+    exact solutions; a new analysis only when an entry falls outside every pattern seen."""
+    import scipy.sparse as sp
+
+    from sim.linsolve import MergedSolver
+
+    n = 60
+    rng = np.random.default_rng(5)
+    band = sp.diags([rng.uniform(-0.5, 0.5, n - k) for k in range(3)], [0, -1, -2], format="csc")
+    A = band.copy()
+    A.setdiag(10.0)
+    solver = MergedSolver(A)
+
+    def outside(pairs):
+        r, c = np.array(pairs).T
+        return sp.coo_matrix((rng.uniform(-1.0, 1.0, len(r)), (r, c)), shape=(n, n))
+
+    def check(E, expect_analyses):
+        A.data[:] = rng.uniform(-0.5, 0.5, A.nnz)
+        A.setdiag(10.0 + rng.uniform(0.0, 1.0, n))
+        d = rng.uniform(0.0, 1.0, n)
+        b = rng.standard_normal(n)
+        x = solver.solve(A, d, E, b)
+        L = A - sp.diags(d) + E
+        full = (L + L.T - sp.diags(L.diagonal())).toarray()
+        assert np.abs(full @ x - b).max() < 1e-10 * np.abs(b).max()
+        assert solver.n_analyses == expect_analyses
+
+    check(outside([(40, 3), (50, 10)]), 1)
+    check(outside([(40, 3)]), 1)  # a subset: same analysis
+    check(outside([(50, 10), (40, 3)]), 1)
+    check(outside([(55, 1)]), 2)  # new entry: grown pattern
+    check(outside([(40, 3), (55, 1), (50, 10)]), 2)
+    # Indefinite: None without a shift, a shifted solve with one.
+    E = outside([(40, 3)])
+    E.data[:] = 11.5  # the 2x2 block [[~10.5, 11.5], [11.5, ~10.5]] is indefinite
+    assert solver.solve(A, np.zeros(n), E, np.ones(n), allow_shift=False) is None
+    assert np.isfinite(solver.solve(A, np.zeros(n), E, np.ones(n))).all()
