@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
+from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze, cholesky
 
 
 class CholeskySolver:
@@ -47,78 +47,23 @@ class CholeskySolver:
         return self._factor(b)
 
 
-class MergedSolver:
-    """Solves (A - diag(d) + E) x = b: A on a fixed lower-triangular pattern, E a few
-    lower-triangular entries outside it that come and go (contact couplings merged back
-    into the Hessian, sim/potential.py).
-
-    One symbolic analysis serves every matrix whose entries lie in the pattern analysed:
-    A's pattern, explicit zeros kept, plus every outside entry seen since. A new entry
-    grows that pattern and analyses it again; once the entries seen outnumber `slack`
-    times A's, the pattern restarts from A's plus the current ones. On the 61K-DOF dress
-    a fresh analysis costs more than the numeric factorization (1.0 s against 0.7 s).
-    """
-
-    def __init__(self, A_lower: sp.csc_matrix, slack: float = 0.1):
-        self.n = A_lower.shape[0]
-        self._base_keys = _keys(A_lower)
-        self._slack = slack
-        self._keys = None  # sorted keys (col * n + row) of the pattern analysed
-        self.n_analyses = 0
-
-    def solve(self, A_lower: sp.csc_matrix, d: np.ndarray, E: sp.coo_matrix, b: np.ndarray,
-              allow_shift: bool = True) -> np.ndarray | None:
-        """x, factoring with a shift when the matrix is not positive definite (as
-        CholeskySolver does), or None then when `allow_shift` is off."""
-        E_keys = E.col.astype(np.int64) * self.n + E.row
-        pos = self._positions(E_keys)
-        if pos is None:
-            self._analyse(E_keys)
-            pos = self._positions(E_keys)
-        data = np.zeros(self._keys.size)
-        data[self._base_pos] = A_lower.data
-        data[self._diag_pos] -= d
-        np.add.at(data, pos, E.data)
-        M = sp.csc_matrix((data, self._indices, self._indptr), shape=(self.n, self.n))
-        scale = float(np.abs(data[self._diag_pos]).max()) or 1.0
-        shift = 0.0
-        while True:
-            try:
-                self._factor.cholesky_inplace(M, beta=shift)
-                return self._factor(b)
-            except CholmodNotPositiveDefiniteError:
-                if not allow_shift:
-                    return None
-                shift = max(1e-10 * scale, 10.0 * shift)
-                if shift > scale:
-                    raise
-
-    def _positions(self, keys: np.ndarray) -> np.ndarray | None:
-        """Where `keys` sit in the analysed pattern, or None if one is missing."""
-        if self._keys is None:
+def solve_once(A_lower: sp.csc_matrix, b: np.ndarray, allow_shift: bool = True) -> np.ndarray | None:
+    """Solve with a matrix whose pattern is seen once: analyse, factor (shifted if not
+    positive definite, as CholeskySolver does, or None when `allow_shift` is off), solve."""
+    if not allow_shift:
+        try:
+            return cholesky(A_lower, mode="supernodal")(b)
+        except CholmodNotPositiveDefiniteError:
             return None
-        pos = np.minimum(np.searchsorted(self._keys, keys), self._keys.size - 1)
-        return pos if np.array_equal(self._keys[pos], keys) else None
-
-    def _analyse(self, new_keys: np.ndarray) -> None:
-        grown = np.union1d(self._keys if self._keys is not None else self._base_keys, new_keys)
-        if grown.size > (1.0 + self._slack) * self._base_keys.size:
-            grown = np.union1d(self._base_keys, new_keys)
-        self._keys = grown
-        cols, rows = np.divmod(grown, self.n)
-        self._indices = rows.astype(np.int32)
-        self._indptr = np.searchsorted(cols, np.arange(self.n + 1)).astype(np.int32)
-        self._base_pos = np.searchsorted(grown, self._base_keys)
-        self._diag_pos = np.searchsorted(grown, np.arange(self.n, dtype=np.int64) * (self.n + 1))
-        pattern = sp.csc_matrix((np.ones(grown.size), self._indices, self._indptr), shape=(self.n, self.n))
-        self._factor = analyze(pattern, mode="supernodal")
-        self.n_analyses += 1
-
-
-def _keys(A: sp.csc_matrix) -> np.ndarray:
-    """col * n + row of every stored entry of a CSC matrix, explicit zeros included."""
-    cols = np.repeat(np.arange(A.shape[1], dtype=np.int64), np.diff(A.indptr))
-    return cols * A.shape[0] + A.indices
+    scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
+    shift = 0.0
+    while True:
+        try:
+            return cholesky(A_lower, beta=shift, mode="supernodal")(b)
+        except CholmodNotPositiveDefiniteError:
+            shift = max(1e-10 * scale, 10.0 * shift)
+            if shift > scale:
+                raise
 
 
 def pcg(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_iterations: int):

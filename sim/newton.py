@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linsolve import neumann, pcg
+from .linsolve import neumann, pcg, solve_once
 from .potential import IncrementalPotential
 from .stats import StepStats
 
@@ -139,11 +139,10 @@ def _direction(ip, C, g, drive, opts, stats, allow_fail):
     # pieces) sit on the diagonal of the assembled matrix so one symbolic analysis serves
     # every iteration. Partial factorization (paper section 5.3): when they are weak
     # (Gershgorin bound on ||D^-1 B|| < 1) solve the exact system by CG preconditioned
-    # with that factor; otherwise merge them and factor (their symbolic analysis is
-    # kept while the couplings stay within the pattern analysed, linsolve.MergedSolver).
+    # with that factor; otherwise merge them and factor once.
     exact = ip.correction is not None and opts.off_pattern != "diagonal"
     if exact and (opts.off_pattern == "merge" or ip.coupling_bound() >= 1.0):
-        p = ip.solve_exact(rhs, allow_shift=not allow_fail)
+        p = solve_once(ip.exact_lower(), rhs, allow_shift=not allow_fail)
         stats.t_factorization += time.perf_counter() - t0
         if p is None:
             return None

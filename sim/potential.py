@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from .assembly import BlockPattern
 from .energies.base import Energy
-from .linsolve import CholeskySolver, MergedSolver
+from .linsolve import CholeskySolver
 
 
 class IncrementalPotential:
@@ -32,7 +32,6 @@ class IncrementalPotential:
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.correction = None
         self.solver = CholeskySolver(self.matrix)
-        self.merged_solver = MergedSolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
@@ -93,11 +92,14 @@ class IncrementalPotential:
         d = self.matrix.diagonal() - shift
         return float(np.max(shift / np.maximum(d, 1e-300)))
 
-    def solve_exact(self, b: np.ndarray, allow_shift: bool = True) -> np.ndarray | None:
-        """Solve with the exact Hessian, moved couplings merged back (shifted when not
-        positive definite; None then when `allow_shift` is off)."""
-        B, shift = self.correction
-        return self.merged_solver.solve(self.matrix, shift, sp.tril(B, format="coo"), b, allow_shift)
+    def exact_lower(self) -> sp.csc_matrix:
+        """Lower triangle of the exact Hessian, moved couplings merged back (a pattern
+        of its own, for a one-off factorization)."""
+        L = self.matrix.copy()
+        if self.correction is not None:
+            B, shift = self.correction
+            L = (L - sp.diags(shift) + sp.tril(B)).tocsc()
+        return L
 
     def apply_hessian(self, p: np.ndarray) -> np.ndarray:
         """The exact assembled Hessian (free DOFs) times p, moved couplings included."""
