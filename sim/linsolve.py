@@ -49,17 +49,21 @@ class CholeskySolver:
 
 def solve_once(A_lower: sp.csc_matrix, b: np.ndarray, allow_shift: bool = True) -> np.ndarray | None:
     """Solve with a matrix whose pattern is seen once: analyse, factor (shifted if not
-    positive definite, as CholeskySolver does, or None when `allow_shift` is off), solve."""
+    positive definite, as CholeskySolver does, or None when `allow_shift` is off), solve.
+
+    Ordered by AMD alone: CHOLMOD's default also tries METIS, which on the 61K-DOF dress
+    (contact couplings merged: a pattern new at nearly every Newton iteration) spends
+    1.0 s to save 0.2 s of the 0.9 s factorization; AMD analyses in 0.13 s."""
     if not allow_shift:
         try:
-            return cholesky(A_lower, mode="supernodal")(b)
+            return cholesky(A_lower, mode="supernodal", ordering_method="amd")(b)
         except CholmodNotPositiveDefiniteError:
             return None
     scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
     shift = 0.0
     while True:
         try:
-            return cholesky(A_lower, beta=shift, mode="supernodal")(b)
+            return cholesky(A_lower, beta=shift, mode="supernodal", ordering_method="amd")(b)
         except CholmodNotPositiveDefiniteError:
             shift = max(1e-10 * scale, 10.0 * shift)
             if shift > scale:
