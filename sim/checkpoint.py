@@ -49,6 +49,12 @@ class SimState:
     seam_pairs: np.ndarray | None = None  # (P,) seam vertex pairs: 0 open, 1 merged, 2 apart, no contact
 
 
+# SimState fields that are None in scenes without contact, bodies or seams: stored only
+# when set.
+_OPTIONAL_ARRAYS = ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_gaps", "seam_pairs")
+_OPTIONAL_NUMBERS = ("kappa", "stiffness_floor", "stiffness_prev_d")
+
+
 def capture(sim) -> SimState:
     """Copy the evolving state of `sim` (cheap: a few arrays)."""
     s = SimState(sim.C.copy(), sim.V.copy(), float(sim.t), int(sim.step_count), float(sim.dt),
@@ -129,8 +135,7 @@ def write_checkpoint(path: str | os.PathLike, sim, frame: int, scene_hash: str,
         "C": s.C, "V": s.V, "t": np.float64(s.t), "step_count": np.int64(s.step_count), "dt": np.float64(s.dt),
         "projection_backoff": np.asarray(s.projection_backoff, np.int64),
     }
-    for name in ("obstacle_vertices", "drive_target", "kappa", "stiffness_floor", "stiffness_prev_d",
-                 "seam_multipliers", "seam_gaps", "seam_pairs"):
+    for name in _OPTIONAL_ARRAYS + _OPTIONAL_NUMBERS:
         value = getattr(s, name)
         if value is not None:
             arrays[name] = np.asarray(value, np.float64)
@@ -156,8 +161,8 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
         with np.load(path, allow_pickle=False) as d:
             if int(d["format"]) != FORMAT:
                 raise InputError(f"{path}: checkpoint format {int(d['format'])}, this version reads {FORMAT}")
-            opt = {k: d[k] for k in ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_gaps", "seam_pairs") if k in d.files}
-            num = {k: float(d[k]) for k in ("kappa", "stiffness_floor", "stiffness_prev_d") if k in d.files}
+            opt = {k: d[k] for k in _OPTIONAL_ARRAYS if k in d.files}
+            num = {k: float(d[k]) for k in _OPTIONAL_NUMBERS if k in d.files}
             state = SimState(d["C"].copy(), d["V"].copy(), float(d["t"]), int(d["step_count"]), float(d["dt"]),
                              projection_backoff=tuple(int(x) for x in d["projection_backoff"]),
                              **{k: v.copy() for k, v in opt.items()}, **num)
