@@ -32,3 +32,16 @@ def test_wrinkle_deflection_approaches_reference():
     coarse, fine = wrinkle.solve(30), wrinkle.solve(40)
     assert coarse["max_deflection_mm"] < fine["max_deflection_mm"] < 1.1 * wrinkle.REFERENCE_MM
     assert fine["max_deflection_mm"] > 0.7 * wrinkle.REFERENCE_MM
+
+
+def test_bench_garment_cases_set_the_papers_hiphop_parameters():
+    from garment.bench.garment import case_scene
+
+    sc = case_scene("dress-hiphop", 0.016, "gauss2")
+    (g,) = sc.garments
+    assert (g.material.E_st, g.material.E_sh, g.material.E_bd, g.material.quadrature) == (5e5, 2.5e3, 8e2, "gauss2")
+    assert (sc.contact.dhat, sc.contact.mu, g.knot_span) == (3e-4, 0.1, 0.016)
+    assert case_scene("dress-frictionless", 0.04).contact.mu == 0.0
+    assert case_scene("dress", 0.04).contact.mu == 0.2
+    with pytest.raises(SystemExit, match="dress-hiphop"):
+        case_scene("hiphop", 0.04)

@@ -17,33 +17,49 @@ from pathlib import Path
 
 import numpy as np
 
+from garment.materials import PRESETS
 from sim.simulator import Simulator
 
 from .common import SCENES, step_summary
 
-SCENES_BY_CASE = {"poncho": "poncho_rumba", "dress": "dress_rumba"}  # --case
+# --case: scene, and contact / material changes. "dress-hiphop" is the dress with the
+# paper's Hiphop Dance parameters (its goal's scene); "dress-frictionless" isolates what
+# friction costs Newton.
+CASES = {
+    "poncho": ("poncho_rumba", {}, None),
+    "dress": ("dress_rumba", {}, None),
+    "dress-hiphop": ("dress_rumba", {"dhat": 3e-4, "mu": 0.1}, "hiphop"),
+    "dress-frictionless": ("dress_rumba", {"mu": 0.0}, None),
+}
 COLUMNS = ("resolution", "dofs", "sew_steps", "sew_seconds_per_step", "steps", "seconds_per_step",
            "newton_iterations_per_step", "ccd_fraction", "line_search_fraction", "seam_gap_max_mm",
            "build_seconds")
 DEFAULT_STEPS = 40
 
 
-def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "poncho",
-        refine: int = 0) -> list[dict]:
+def case_scene(case: str, span_m: float, quadrature: str | None = None):
+    """The scene of `case` with every garment at knot span `span_m`."""
     from garment.scene import load_scene
 
-    if case not in SCENES_BY_CASE:
-        raise SystemExit(f"garment bench garment: --case must be one of {', '.join(SCENES_BY_CASE)}, not {case!r}")
+    if case not in CASES:
+        raise SystemExit(f"garment bench garment: --case must be one of {', '.join(CASES)}, not {case!r}")
+    scene_name, contact, preset = CASES[case]
+    sc = load_scene(SCENES / f"{scene_name}.toml")
+    garments = []
+    for g in sc.garments:
+        material = PRESETS[preset] if preset is not None else g.material
+        if quadrature is not None:
+            material = dataclasses.replace(material, quadrature=quadrature)
+        garments.append(dataclasses.replace(g, material=material, knot_span=span_m))
+    return dataclasses.replace(sc, garments=garments, contact=dataclasses.replace(sc.contact, **contact))
+
+
+def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "poncho",
+        refine: int = 0) -> list[dict]:
+    levels = int(refine)
     cases = []
     for span_mm in resolutions:
-        sc = load_scene(SCENES / f"{SCENES_BY_CASE[case]}.toml")
-        garments = sc.garments
-        if quadrature is not None:
-            garments = [dataclasses.replace(g, material=dataclasses.replace(g.material, quadrature=quadrature))
-                        for g in garments]
-        levels = int(refine)
-        garments = [dataclasses.replace(g, knot_span=span_mm * 2 ** levels / 1000.0) for g in garments]
-        sc = dataclasses.replace(sc, garments=garments)
+        sc = case_scene(case, span_mm * 2 ** levels / 1000.0, quadrature)
         start = time.perf_counter()
         sim = Simulator.from_scene(sc)
         build = time.perf_counter() - start

@@ -59,7 +59,8 @@ def register(sub) -> None:
     b.add_argument("--quadrature", choices=QUADRATURES)
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--case", help="compare: comma-separated cases (hanging, drape, shear, sphere, plate, "
-                                  "locking, ablation); garment: poncho (default) or dress")
+                                  "locking, ablation); garment: poncho (default), dress, dress-hiphop "
+                                  "(the paper's Hiphop cloth and contact) or dress-frictionless")
     b.add_argument("--refine", type=int, default=0, metavar="K",
                    help="garment only: sew at 2^K x the span, then refine exactly K times to it")
     b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
