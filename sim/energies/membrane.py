@@ -2,9 +2,10 @@
 
 A concrete model supplies one numba kernel, `density(F, params, project, psi, P, H)`,
 filling per point the energy density psi (Q,), its first derivative P = dPsi/dF (Q, 3, 2)
-and its second derivative H (Q, 6, 6), exact (project 0) or PSD-projected (1 clamp, 2 abs), in the column-stacked
-layout [F e1; F e2]. This module turns those into energy, gradient and Hessian blocks on
-the control points through the precomputed stencils and gather maps.
+and its second derivative H (Q, 6, 6), exact (project 0) or PSD-projected (1 clamp,
+2 abs), in the column-stacked layout [F e1; F e2]. This module turns those into energy,
+gradient and Hessian blocks on the control points through the precomputed stencils and
+gather maps.
 """
 
 from __future__ import annotations
