@@ -221,27 +221,23 @@ def test_projected_hessian_is_psd(name, projection):
         assert proj.max() > 0.5 * raw.max()
 
 
-def clamp(H):
+def eigen_fixed(H, projection):
+    """H with its negative eigenvalues clamped to 0 or flipped (`projection`), numerically."""
     lam, V = np.linalg.eigh(H)
-    return (V * np.maximum(lam, 0.0)) @ V.T
+    return (V * (np.maximum(lam, 0.0) if projection == "clamp" else np.abs(lam))) @ V.T
 
 
-def absolute(H):
-    lam, V = np.linalg.eigh(H)
-    return (V * np.abs(lam)) @ V.T
-
-
-def per_term_projected(F, kst, ksh, fix=clamp):
-    """Sum of the eigen-fixed (clamped or abs) exact Hessians of the three FBW terms."""
+def per_term_projected(F, kst, ksh, projection):
+    """Sum of the eigen-fixed exact Hessians of the three FBW terms."""
     f1, f2 = F[:, 0], F[:, 1]
     H = np.zeros((6, 6))
     for off, f in ((0, f1), (3, f2)):
         l = np.linalg.norm(f)
         nn = np.outer(f, f) / l**2
-        H[off:off + 3, off:off + 3] += fix(2 * kst * (nn + (1 - 1 / l) * (np.eye(3) - nn)))
+        H[off:off + 3, off:off + 3] += eigen_fixed(2 * kst * (nn + (1 - 1 / l) * (np.eye(3) - nn)), projection)
     g = np.concatenate([f2, f1])
     S = np.block([[np.zeros((3, 3)), np.eye(3)], [np.eye(3), np.zeros((3, 3))]])
-    H += fix(2 * ksh * (np.outer(g, g) + (f1 @ f2) * S))
+    H += eigen_fixed(2 * ksh * (np.outer(g, g) + (f1 @ f2) * S), projection)
     return H
 
 
@@ -267,9 +263,8 @@ def test_fbw_analytic_projection_equals_per_term_eigen_fix(projection):
     params = np.tile([3.0, 0.7], (Q, 1))
     psi, P, H = np.zeros(Q), np.zeros((Q, 3, 2)), np.zeros((Q, 6, 6))
     fbw_density(np.ascontiguousarray(F), params, projection_code(projection), psi, P, H)
-    fix = clamp if projection == "clamp" else absolute
     for q in range(Q):
-        ref = per_term_projected(F[q], 3.0, 0.7, fix)
+        ref = per_term_projected(F[q], 3.0, 0.7, projection)
         assert np.abs(H[q] - ref).max() < 1e-8 * max(1.0, np.abs(ref).max()), q
         assert np.linalg.eigvalsh(H[q]).min() > -1e-10 * np.abs(H[q]).max()
     # Unprojected, the kernel returns the exact Hessian (checked against the same algebra).

@@ -1,5 +1,6 @@
 """A garment on the dancing body (issue 6): the bundled poncho (or, `--case dress`, the
-dress_knife dress) sewn during its pre-roll and then carried by the Rumba dance, at
+dress_knife dress; `dress-hiphop` and `dress-frictionless` vary its parameters, CASES)
+sewn during its pre-roll and then carried by the Rumba dance, at
 several knot spans. `resolution` is the knot span in mm; seconds per step are measured
 after the pre-roll (the dance), with the sewing steps reported apart. The paper's Hiphop
 scene: 65K DOFs, 30 s per step on 12 cores.
