@@ -45,3 +45,26 @@ def test_bench_garment_cases_set_the_papers_hiphop_parameters():
     assert case_scene("dress", 0.04).contact.mu == 0.2
     with pytest.raises(SystemExit, match="dress-hiphop"):
         case_scene("hiphop", 0.04)
+
+
+def test_bench_conform_garments_times_whole_panels():
+    """The split pencil dress: its skirt_back's time is its five pieces together."""
+    from garment.bench import conform_garments
+
+    (case,) = conform_garments.run((20,), case="dress_pencil")
+    assert (case["panels"], case["patches"]) == (6, 10)
+    assert case["target_ratio"] == pytest.approx(case["max_panel_seconds"] / 2.0)
+    assert 0 < case["max_panel_seconds"] < case["total_seconds"]
+    assert case["worst_fit_ratio"] < 1 and case["max_area_error_pct"] < 0.1 and case["min_jacobian_ratio"] > 0.5
+    with pytest.raises(SystemExit, match="dress_knife"):
+        conform_garments.run((20,), case="skirt")
+
+
+def test_panel_seconds_sums_the_pieces_of_a_split_panel():
+    from types import SimpleNamespace
+
+    from garment.bench.conform_garments import panel_seconds
+
+    ps = SimpleNamespace(splits={"skirt": {"patches": ["skirt.0", "skirt.1"], "seconds": 0.7}},
+                         quality={"skirt.0": {"seconds": 0.3}, "skirt.1": {"seconds": 0.4}, "band": {"seconds": 0.2}})
+    assert panel_seconds(ps) == {"skirt": 0.7, "band": 0.2}

@@ -247,7 +247,6 @@ def test_curved_panel_meets_the_targets():
     assert rep["boundary_error_mm"] < 0.1 < rep["tolerance_mm"]
     assert abs(rep["area_error_gauss2_pct"]) < 1e-3  # the boundary keeps the panel's area
     assert abs(rep["area_error_reduced_pct"]) < 0.1
-    assert rep["seconds"] < 2.0
 
 
 def test_knot_insertion_refinement_halves_the_spans():

@@ -1,8 +1,8 @@
 """Conforming the shared real inputs (../shared/assets): dress_knife's panel meshes and the
 GarmentCode shirt and dress. A few panels run in the default set; whole garments are
 marked slow (`pytest -m slow`). Targets (issue 5): no inverted quadrature point, boundary
-fit error within max(1 mm, 0.5 % of the diameter), rest-area error < 0.1 %, < 2 s per
-panel at 20 mm knot spans."""
+fit error within max(1 mm, 0.5 % of the diameter), rest-area error < 0.1 % at 20 mm knot
+spans. The < 2 s per panel target is timed by `garment bench conform-garments`, not here."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ DRESS = ASSETS / "patterns_garmentcode" / "dress_pencil_specification.json"
 needs_assets = pytest.mark.skipif(not DRESS_KNIFE.exists() or not SHIRT.exists(), reason="shared assets missing")
 
 
-def check_targets(ps, max_seconds=2.0, reduced_area_pct=0.1, slow_ok=()):
+def check_targets(ps, reduced_area_pct=0.1, slow_ok=()):
     assert not ps.failures
     for p in ps.patches:
         q = ps.quality[p.name]
@@ -34,7 +34,6 @@ def check_targets(ps, max_seconds=2.0, reduced_area_pct=0.1, slow_ok=()):
         assert abs(q["area_error_gauss2_pct"]) < 0.1, p.name  # the patch's exact area
         if p.name not in slow_ok:
             assert abs(q["area_error_reduced_pct"]) < reduced_area_pct, p.name
-            assert q["seconds"] < max_seconds, p.name
         assert q["lift_max_strain"] < 1e-3, p.name
 
 
@@ -121,7 +120,7 @@ def test_whole_garments_meet_the_targets(source):
     # Every patch, including the five pieces of the dress's skirt_back (split at its darts).
     check_targets(ps)
     for summary in ps.splits.values():
-        assert summary["seconds"] < 2.0 and abs(summary["area_error_reduced_pct"]) < 0.1
+        assert abs(summary["area_error_reduced_pct"]) < 0.1
     # The dress: 4 more seams, the cuts (its darts now sew neighbouring pieces).
     expected = {DRESS_KNIFE: 94, SHIRT: len(seams), DRESS: len(seams) + 4}[source]
     assert len(ps.seams) == expected
@@ -148,7 +147,6 @@ def test_dress_skirt_back_is_split_at_its_darts():
         assert min(q["corner_angles_deg"]) > 80, name
     summary = ps.splits["skirt_back"]
     assert abs(summary["area_error_reduced_pct"]) < 0.05 and abs(summary["area_error_gauss2_pct"]) < 1e-5
-    assert summary["seconds"] < 2.0
     cuts = summary["cuts"]
     assert [c["dart"] for c in cuts] == ["stitch0", "stitch1", "stitch2", "stitch3"]
     for c in cuts:  # vertical, tip to hem

@@ -97,7 +97,6 @@ def test_split_skirt_meets_the_targets_and_its_seams_match(tmp_path):
         assert q["inverted_points"] == 0 and q["min_jacobian_ratio"] > 0.5 and q["max_jacobian_ratio"] < 2.0, name
         assert q["boundary_error_mm"] < q["tolerance_mm"], name
         assert abs(q["area_error_reduced_pct"]) < 0.1 and abs(q["area_error_gauss2_pct"]) < 1e-9, name
-        assert q["seconds"] < 2.0, name
         assert min(q["corner_angles_deg"]) > 80, name  # quads: the tips are no corners
         prov = ps.provenance[name]
         assert prov["panel"] == "skirt" and prov["patch"] == name and prov["pieces"] == 3

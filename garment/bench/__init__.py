@@ -13,6 +13,7 @@ from typing import Callable
 from . import cloth, compare, contact_hessian, partial_factorization, plate, wrinkle
 from . import garment as garment_bench
 from . import conform as conform_bench
+from . import conform_garments
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,9 @@ BENCHMARKS = {
                   cloth.runner("shear"), (75, 100, 125), cloth.COLUMNS),
         Benchmark("conform", "quadrature error on conformed distorted patches (aspect, skew, bend sweep)",
                   conform_bench.run, (10, 20), conform_bench.COLUMNS, reports_steps=False),
+        Benchmark("conform-garments", "conforming the bundled garments: seconds per panel vs the 2 s target "
+                  "(resolution = knot span, mm)", conform_garments.run, (20,), conform_garments.COLUMNS,
+                  reports_steps=False),
         Benchmark("contact-hessian", "dense-contact Hessian: ipctk evaluation and mapping to control points",
                   contact_hessian.run, (30, 50, 75), contact_hessian.COLUMNS, reports_steps=False),
         Benchmark("partial-factorization", "off-pattern contact couplings: diagonal vs CG/merge vs merge (two plates)",

@@ -17,8 +17,8 @@ def run(args) -> int:
         kwargs["quadrature"] = args.quadrature
     if args.out and args.name != "compare":
         raise SystemExit("--out applies to `garment bench compare` only")
-    if args.case and args.name not in ("compare", "garment"):
-        raise SystemExit("--case applies to `garment bench compare` and `garment bench garment` only")
+    if args.case and args.name not in ("compare", "garment", "conform-garments"):
+        raise SystemExit("--case applies to `garment bench compare`, `garment` and `conform-garments` only")
     kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
     if args.refine:
         if args.refine < 0:
@@ -60,7 +60,8 @@ def register(sub) -> None:
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--case", help="compare: comma-separated cases (hanging, drape, shear, sphere, plate, "
                                   "locking, ablation); garment: poncho (default), dress, dress-hiphop "
-                                  "(the paper's Hiphop cloth and contact) or dress-frictionless")
+                                  "(the paper's Hiphop cloth and contact) or dress-frictionless; conform-garments: "
+                                  "dress_knife, shirt_mean, dress_pencil")
     b.add_argument("--refine", type=int, default=0, metavar="K",
                    help="garment only: sew at 2^K x the span, then refine exactly K times to it")
     b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
