@@ -90,6 +90,17 @@ def test_synthetic_far_pairs_and_pins_match_reference(sim):
     # PSD in, PSD out (moved entries keep it so).
     eig = np.linalg.eigvalsh(pattern.full(data).toarray())
     assert eig.min() > -1e-10 * eig.max()
+    # The moved couplings and the diagonal they went to restore the exact W^T H W.
+    r, c, v = cmap.off_pattern
+    assert np.all(r > c) and np.count_nonzero(v) == ref_moved
+    B = sp.csr_matrix((v, (r, c)), shape=(pattern.n_dofs, pattern.n_dofs))
+    exact = pattern.full(data) - sp.diags(cmap.shift) + B + B.T
+    n = 3 * sim.barrier.contact.n_cloth
+    W3 = sp.kron(W, sp.identity(3), format="csr")
+    free_points = np.flatnonzero(pattern.free >= 0)
+    dofs = (3 * free_points[:, None] + np.arange(3)).ravel()
+    want = (W3.T @ H.tocsc()[:n, :n] @ W3)[dofs][:, dofs]
+    assert rel_err(exact.toarray(), want.toarray()) < 1e-12
 
 
 def test_adds_into_existing_data(sim):

@@ -117,12 +117,16 @@ class ContactHessianMap:
         entries (`off_pattern`, one triangle) and the diagonal added (`shift`) are kept, so
         a solver can still apply the exact Hessian (partial factorization, sim/newton.py)."""
         n3 = 3 * self.pattern.n_free
-        uk, inv = np.unique(r * n3 + c, return_inverse=True)
-        signed = np.bincount(inv.ravel(), weights=val)
+        # Summed by CSR conversion (a counting sort): on the dress every iteration moves
+        # millions of contributions, where np.unique's argsort took a fifth of the time.
+        M = sp.csr_matrix((val, (r, c)), shape=(n3, n3))
+        M.sum_duplicates()
+        rows = np.repeat(np.arange(n3), np.diff(M.indptr))
+        signed = M.data
         s = np.abs(signed)
-        d = np.bincount(uk // n3, s, minlength=n3) + np.bincount(uk % n3, s, minlength=n3)
+        d = np.bincount(rows, s, minlength=n3) + np.bincount(M.indices, s, minlength=n3)
         data[self.diag_pos] += d
-        self.off_pattern = (uk // n3, uk % n3, signed)
+        self.off_pattern = (rows, M.indices.astype(np.int64), signed)
         self.shift = d
         return int(np.count_nonzero(s))
 
