@@ -4,6 +4,7 @@ exact Hessian, exact pins, pin motion, and one-shot convergence on a quadratic p
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import pytest
 
 from garment.materials import Material
@@ -257,3 +258,57 @@ def test_neumann_series_converges_when_the_splitting_contracts():
     inv = 1.0 / np.diag(M)
     x, k, ok = neumann(lambda v: A @ v, b, lambda r: inv * r, inv * b, 1e-12, 200)
     assert ok and k < 60 and np.linalg.norm(A @ x - b) <= 1e-12 * np.linalg.norm(b)
+
+
+class _Line:
+    """A potential along one coordinate for _extrapolate: E(C) = f(C[0, 0]); collision-free
+    up to `wall`."""
+
+    def __init__(self, f, wall=np.inf):
+        self.f, self.wall, self.variable = f, wall, [True]
+
+    def value(self, C):
+        return self.f(C[0, 0])
+
+    def max_step(self, C0, C1):
+        return min(1.0, (self.wall - C0[0, 0]) / (C1[0, 0] - C0[0, 0]))
+
+
+@pytest.mark.parametrize("f, wall, reached", [
+    (lambda x: -x, np.inf, 16.0),             # linear: every doubling pays, up to the limit
+    (lambda x: (x - 3.0) ** 2, np.inf, 2.0),  # minimum at 3: 2 is lower than 1, 4 is not
+    (lambda x: -x, 5.0, 4.0),                 # the collision test stops the doubling at 4
+])
+def test_extrapolation_doubles_a_full_step_while_the_energy_falls(f, wall, reached):
+    from sim.newton import _extrapolate
+
+    ip, stats = _Line(f, wall), StepStats()
+    C = np.zeros((2, 3))
+    C[0, 0] = 1.0  # the full step p = (1, 0, 0) already taken from 0
+    step = np.zeros((2, 3))
+    step[0, 0] = 1.0
+    C_new, E_new = _extrapolate(ip, C, f(1.0), step, np.arange(2), 4, stats)
+    assert C_new[0, 0] == reached and E_new == f(reached)
+    assert np.all(C_new[1] == 0.0) and C[0, 0] == 1.0  # the input is not modified
+    assert stats.extra.get("extrapolations", 0) == int(np.log2(reached))
+
+
+def test_large_factorizations_get_more_blas_threads_and_give_them_back():
+    from sim import linsolve
+
+    lib = linsolve._OPENBLAS
+    if lib is None or linsolve.LARGE_THREADS <= 1:
+        pytest.skip("CHOLMOD does not call the system OpenBLAS here, or one core")
+    before = lib.openblas_get_num_threads()
+    with linsolve.blas_threads(linsolve.PARALLEL_ROWS - 1):
+        assert lib.openblas_get_num_threads() == before
+    with linsolve.blas_threads(linsolve.PARALLEL_ROWS):
+        assert lib.openblas_get_num_threads() == linsolve.LARGE_THREADS
+    assert lib.openblas_get_num_threads() == before
+    # The factorization inside still solves: a large SPD system, residual at round-off.
+    n = linsolve.PARALLEL_ROWS
+    A = sp.diags([np.full(n - 1, -1.0), np.full(n, 2.5)], [-1, 0], format="csc")
+    b = np.ones(n)
+    x = linsolve.solve_once(A, b)
+    A_full = A + sp.tril(A, -1).T
+    assert np.abs(A_full @ x - b).max() < 1e-12
