@@ -57,6 +57,8 @@ Full example (every key shown)::
     steps_per_frame = 1         # >= 1
     newton_tol = 1e-2           # m/s, > 0: stop when ||dC||_inf / dt < newton_tol
     max_newton_iterations = 100 # >= 1
+    newton_extrapolate = 0      # >= 0: doublings tried after a full step that beats the
+                                # Newton model (sliding friction; sim/newton.py)
     mode = "dynamic"            # "dynamic" | "quasistatic"
 
     [output]
@@ -188,6 +190,7 @@ class TimeSpec:
     steps_per_frame: int = 1
     newton_tol: float = 1e-2
     max_newton_iterations: int = 100
+    newton_extrapolate: int = 0
     mode: str = "dynamic"
     preroll: float = 0.0  # s: animated bodies hold their first pose this long first
     sewing: str = "dynamic"  # "quasistatic": velocities dropped after each sewing step of the pre-roll
@@ -388,7 +391,8 @@ _CLOTH_KEYS = (
 _PERTURBATION_KEYS = ("amplitude", "waves")
 _PIN_KEYS = ("cloth", "corners", "sides", "box", "depth", "velocity", "start", "duration")
 _LOAD_KEYS = ("gravity", "pressure", "pressure_direction")
-_TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "mode", "preroll", "sewing")
+_TIME_KEYS = ("dt", "frames", "steps_per_frame", "newton_tol", "max_newton_iterations", "newton_extrapolate", "mode",
+              "preroll", "sewing")
 _OUTPUT_KEYS = ("rrd", "mesh_dir", "mesh_format", "mesh_resolution")
 _OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate", "sphere", "plane", "spin", "inset")
 _SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
@@ -566,6 +570,7 @@ def _read_time(t: _Table) -> TimeSpec:
             steps_per_frame=t.integer("steps_per_frame", ge=1),
             newton_tol=t.number("newton_tol", gt=0),
             max_newton_iterations=t.integer("max_newton_iterations", ge=1),
+            newton_extrapolate=t.integer("newton_extrapolate", ge=0),
             mode=t.choice("mode", TIME_MODES),
             preroll=t.number("preroll", ge=0),
             sewing=t.choice("sewing", SEWING_MODES),

@@ -37,6 +37,14 @@ class NewtonOptions:
     # model predicts (sliding friction: see _extrapolate); 0 turns them off.
     extrapolate: int = 0
 
+    @classmethod
+    def for_time(cls, time_spec, given: NewtonOptions | None = None) -> NewtonOptions:
+        """`given` (or the defaults) with a scene's [time] Newton settings."""
+        opts = given or cls()
+        opts.tol, opts.max_iterations = time_spec.newton_tol, time_spec.max_newton_iterations
+        opts.extrapolate = time_spec.newton_extrapolate
+        return opts
+
 
 def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats: StepStats) -> np.ndarray:
     """Returns the minimiser reached from C; fills the timing and iteration fields of stats."""

@@ -316,8 +316,7 @@ class Simulator:
             seams += [SeamSpec(name[s.patch_a], s.uv_a, name[s.patch_b], s.uv_b, s.name) for s in ps.seams]
             stiffness += [g.seam_stiffness] * len(ps.seams)
         tm = scene.time
-        opts = newton or NewtonOptions()
-        opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
+        opts = NewtonOptions.for_time(tm, newton)
         obstacles = [load_obstacle(o) for o in scene.obstacles]
         # Pre-roll: bodies hold their first pose while the seams close; inset bodies grow
         # back in its second half, once the seams are sewn.

@@ -40,9 +40,11 @@ def test_bench_garment_cases_set_the_papers_hiphop_parameters():
     sc = case_scene("dress-hiphop", 0.016, "gauss2")
     (g,) = sc.garments
     assert (g.material.E_st, g.material.E_sh, g.material.E_bd, g.material.quadrature) == (5e5, 2.5e3, 8e2, "gauss2")
-    assert (sc.contact.dhat, sc.contact.mu, g.knot_span) == (3e-4, 0.1, 0.016)
+    assert (sc.contact.dhat, sc.contact.mu, sc.contact.eps_v, g.knot_span) == (3e-4, 0.1, 1e-3, 0.016)
+    assert sc.time.newton_extrapolate == 0
     assert case_scene("dress-frictionless", 0.04).contact.mu == 0.0
-    assert case_scene("dress", 0.04).contact.mu == 0.2
+    dress = case_scene("dress", 0.04)
+    assert (dress.contact.mu, dress.contact.eps_v, dress.time.newton_extrapolate) == (0.2, 1e-2, 4)
     with pytest.raises(SystemExit, match="dress-hiphop"):
         case_scene("hiphop", 0.04)
 

@@ -315,6 +315,7 @@ ERRORS = {
     "zero dt": (CLOTH + "[time]\ndt = 0\n", "time.dt", "must be > 0"),
     "zero newton_tol": (CLOTH + "[time]\nnewton_tol = 0.0\n", "time.newton_tol", "> 0"),
     "zero frames": (CLOTH + "[time]\nframes = 0\n", "time.frames", "must be >= 1"),
+    "negative extrapolation": (CLOTH + "[time]\nnewton_extrapolate = -1\n", "time.newton_extrapolate", "must be >= 0"),
     "nu = 0.5": (CLOTH + "[material]\nnu = 0.5\n", "material.nu", "must be in (-1, 0.5)"),
     "nu = -1": (CLOTH + "[material]\nnu = -1\n", "material.nu", "must be in (-1, 0.5)"),
     "reduced quadrature net too small": (
@@ -436,6 +437,15 @@ def test_scene_error_is_a_value_error_and_pickles():
         "must be > 0, got 0",
         str(error),
     )
+
+
+def test_newton_extrapolate_reaches_the_solver(tmp_path):
+    from sim.simulator import Simulator
+
+    scene = load_scene(write(tmp_path, CLOTH + "[time]\nnewton_extrapolate = 3\nnewton_tol = 0.02\n"))
+    opts = Simulator.from_scene(scene).newton
+    assert (opts.extrapolate, opts.tol) == (3, 0.02)
+    assert Simulator.from_scene(load_scene(write(tmp_path, CLOTH, "plain.toml"))).newton.extrapolate == 0
 
 
 def test_material_default_is_cotton():

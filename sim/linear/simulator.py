@@ -171,8 +171,7 @@ class LinearSimulator(Simulator):
         directions = [np.asarray(load.pressure_direction, float) if load.pressure_direction is not None else c.normal
                       for c in scene.cloths]
         tm = scene.time
-        opts = newton or NewtonOptions()
-        opts.tol, opts.max_iterations = tm.newton_tol, tm.max_newton_iterations
+        opts = NewtonOptions.for_time(tm, newton)
         return cls(meshes, worlds, [c.material for c in scene.cloths], groups, load.gravity, load.pressure,
                    directions, tm.dt, tm.mode, opts, scene.contact, [load_obstacle(o) for o in scene.obstacles],
                    [c.name for c in scene.cloths])
