@@ -283,7 +283,7 @@ class Simulator:
 
     def _use_contact_mesh(self, mesh: ContactMesh) -> None:
         self.barrier.contact = mesh
-        self.barrier._C = None
+        self.barrier.forget()
         self.barrier.bind(self.potential.pattern)
         if self.drive is not None:
             self.drive.mesh = mesh

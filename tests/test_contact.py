@@ -95,6 +95,25 @@ def test_barrier_derivatives_on_control_points():
             np.testing.assert_allclose(H[:, 3 * i + d], col, rtol=1e-4, atol=1e-5 * scale)
 
 
+def test_barrier_keeps_the_collision_sets_of_its_last_two_points():
+    """Back at the point before a rejected trial, the barrier reuses that point's
+    collision set; a third point rebuilds into the older one's."""
+    sim = Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))
+    e = sim.barrier
+    C1 = sim.C.copy()
+    C2 = C1 + [0.0, 0.0, 5e-4]  # lifted past dhat: no contact
+    C3 = C1 + [0.0, 0.0, 2e-4]
+    E1, set1, n1 = e.value(C1), e.collisions, e.n_collisions
+    E2, set2 = e.value(C2), e.collisions
+    assert set2 is not set1 and n1 > 0 and e.n_collisions == 0 and E2 == 0.0
+    assert e.value(C1) == E1 and e.collisions is set1 and e.n_collisions == n1
+    E3 = e.value(C3)
+    assert e.collisions is set2 and 0.0 < E3 < E1  # C2's set, rebuilt at C3
+    assert e.value(C1) == E1 and e.collisions is set1
+    fresh = Simulator.from_scene(loads_scene(DROP.format(height=0.1605))).barrier
+    assert fresh.value(C3) == E3  # the reused set holds exactly C3's collisions
+
+
 def test_projected_contact_hessian_stays_psd_in_pattern():
     """Off-pattern contact entries move to the diagonal: the assembled matrix stays PSD."""
     from sim.assembly import add_dof_matrix

@@ -30,25 +30,44 @@ class BarrierEnergy(ContactEnergy):
         self.barrier = ipctk.NormalizedClampedLogBarrier()
         self.potential = ipctk.BarrierPotential(self.barrier, self.dhat, 1.0)
         self.kappa = float(kappa)
-        self.collisions = ipctk.NormalCollisions()
-        self.collisions.use_area_weighting = True
+        self.collisions = self._new_collisions()
         # A bounded iteration count: the default 1e7 took minutes on cloth lying on a plane
         # (DESIGN.md section 8); Tight Inclusion stays conservative when it stops early.
         self.ccd = ipctk.TightInclusionCCD(ccd_tolerance, ccd_max_iterations)
-        self._C = None
+        # The collision sets at the last two points evaluated, newest first: [C, x,
+        # collisions]. Two, because after a rejected trial (an extrapolated step, the
+        # line search's last halving) Newton goes on from the point before it, whose
+        # collision set would otherwise be rebuilt (the broad phase dominates the build).
+        self._slots = []
         self._version = -1
-        self._x = None
+
+    @staticmethod
+    def _new_collisions():
+        collisions = ipctk.NormalCollisions()
+        collisions.use_area_weighting = True
+        return collisions
+
+    def forget(self) -> None:
+        """Drop the cached collision sets (the contact mesh was replaced)."""
+        self._slots = []
 
     def _update(self, C):
-        """Collision-mesh vertices at C, with the collision set rebuilt when C or the
-        obstacles changed."""
-        if self._C is None or self._version != self.contact.version or not np.array_equal(self._C, C):
-            self._x = self.contact.vertices(C)
-            self.collisions.build(self.contact.mesh, self._x, self.dhat)
-            self._C = C.copy()
-            self._version = self.contact.version
-            self._H_cb = None
-        return self._x
+        """Collision-mesh vertices at C; `collisions` becomes the collision set there,
+        rebuilt unless C is one of the last two points (and the obstacles have not moved)."""
+        if self._version != self.contact.version:
+            self._slots, self._version = [], self.contact.version
+        for k, slot in enumerate(self._slots):
+            if np.array_equal(slot[0], C):
+                if k:
+                    self._slots.reverse()
+                    self.collisions, self._H_cb = slot[2], None
+                return slot[1]
+        collisions = self._slots.pop()[2] if len(self._slots) == 2 else self._new_collisions()
+        x = self.contact.vertices(C)
+        collisions.build(self.contact.mesh, x, self.dhat)
+        self._slots.insert(0, [C.copy(), x, collisions])
+        self.collisions, self._H_cb = collisions, None
+        return x
 
     # More (W, cloth faces) whose triangles the Hessian pattern must hold: the contact
     # mesh the seams will sew shut (sim/simulator.py), whose seam vertices couple both
