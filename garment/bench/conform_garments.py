@@ -33,7 +33,7 @@ def measure(name: str, span_mm: int) -> dict:
     from garment.commands.conform import read_input
 
     span = 1e-3 * span_mm
-    panels, seams = read_input(GARMENTS / CASES[name], spacing=min(span / 6.0, 0.003))
+    panels, seams = read_input(GARMENTS / CASES[name], span)
     start = time.perf_counter()
     ps = conform_all(panels, seams, ConformOptions(knot_span=span))
     total = time.perf_counter() - start

@@ -26,11 +26,13 @@ COLUMNS = ("panel", "status", "control_net", "boundary_error_mm", "tolerance_mm"
            "min_corner_angle_deg", "area_error_pct", "reduced_area_error_pct", "seconds")
 
 
-def read_input(path: Path, spacing: float):
+def read_input(path: Path, knot_span: float):
+    """Panels and seams of a panel mesh or a GarmentCode pattern conformed at `knot_span`
+    (m); pattern outlines are sampled at a sixth of a span, at most 3 mm apart."""
     if path.suffix.lower() == ".json":
         from garment.io.garmentcode import read_garmentcode
 
-        return read_garmentcode(path, spacing=spacing)
+        return read_garmentcode(path, spacing=min(knot_span / 6.0, 0.003))
     from garment.io.panels import read_panels
 
     return read_panels(path)
@@ -122,7 +124,7 @@ def run(args) -> int:
                              mips=MipsOptions(), split=args.split)
     out_dir = Path(args.output)
     # Bad input leaves nothing behind: read it before creating the output directory.
-    panels, seams = read_input(args.input, spacing=min(span / 6.0, 0.003))
+    panels, seams = read_input(args.input, span)
     if args.panels:
         wanted = [p.strip() for p in args.panels.split(",") if p.strip()]
         missing = set(wanted) - {p.name for p in panels}

@@ -18,7 +18,7 @@ def load_garment(spec) -> PatchSet:
         from conform.pipeline import ConformOptions, conform_all
         from garment.commands.conform import read_input
 
-        panels, seams = read_input(spec.source, spacing=min(spec.knot_span / 6.0, 0.003))
+        panels, seams = read_input(spec.source, spec.knot_span)
         if spec.placement is not None:
             place_panels(panels, spec.placement)
         ps = conform_all(panels, seams, ConformOptions(knot_span=spec.knot_span))
