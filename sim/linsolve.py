@@ -12,7 +12,7 @@ from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
-from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze, cholesky
+from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
 
 # CHOLMOD's supernodal factorization spends its time in dense BLAS on the fronts. BLAS
 # runs on one thread by default (garment/_threads.py: small systems lose more to hand-offs
@@ -49,20 +49,25 @@ def blas_threads(rows: int):
 
 
 class CholeskySolver:
-    """Solves H x = b for the lower-triangular CSC matrices of one fixed pattern."""
+    """Solves H x = b for the lower-triangular CSC matrices of one fixed pattern.
 
-    def __init__(self, A_lower: sp.csc_matrix):
-        self._factor = analyze(A_lower, mode="supernodal")
+    ordering: CHOLMOD's ordering method (its default tries AMD and METIS)."""
+
+    def __init__(self, A_lower: sp.csc_matrix, ordering: str = "default"):
+        self._factor = analyze(A_lower, mode="supernodal", ordering_method=ordering)
         self.n_factorizations = 0
+
+    def _refactor(self, A_lower: sp.csc_matrix, shift: float) -> None:
+        with blas_threads(A_lower.shape[0]):
+            self._factor.cholesky_inplace(A_lower, beta=shift)
+        self.n_factorizations += 1
 
     def try_factorize(self, A_lower: sp.csc_matrix) -> bool:
         """Factor A if it is positive definite; False (and no usable factor) if not."""
         try:
-            with blas_threads(A_lower.shape[0]):
-                self._factor.cholesky_inplace(A_lower)
+            self._refactor(A_lower, 0.0)
         except CholmodNotPositiveDefiniteError:
             return False
-        self.n_factorizations += 1
         return True
 
     def factorize(self, A_lower: sp.csc_matrix) -> float:
@@ -71,9 +76,7 @@ class CholeskySolver:
         scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
         while True:
             try:
-                with blas_threads(A_lower.shape[0]):
-                    self._factor.cholesky_inplace(A_lower, beta=shift)
-                self.n_factorizations += 1
+                self._refactor(A_lower, shift)
                 return shift
             except CholmodNotPositiveDefiniteError:
                 # Only reachable without inertia (quasi-static) or with an unprojected
@@ -88,27 +91,17 @@ class CholeskySolver:
 
 def solve_once(A_lower: sp.csc_matrix, b: np.ndarray, allow_shift: bool = True) -> np.ndarray | None:
     """Solve with a matrix whose pattern is seen once: analyse, factor (shifted if not
-    positive definite, as CholeskySolver does, or None when `allow_shift` is off), solve.
+    positive definite, or None when `allow_shift` is off), solve.
 
     Ordered by AMD alone: CHOLMOD's default also tries METIS, which on the 61K-DOF dress
     (contact couplings merged: a pattern new at nearly every Newton iteration) spends
     1.0 s to save 0.2 s of the 0.9 s factorization; AMD analyses in 0.13 s."""
-    if not allow_shift:
-        try:
-            with blas_threads(A_lower.shape[0]):
-                return cholesky(A_lower, mode="supernodal", ordering_method="amd")(b)
-        except CholmodNotPositiveDefiniteError:
-            return None
-    scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
-    shift = 0.0
-    while True:
-        try:
-            with blas_threads(A_lower.shape[0]):
-                return cholesky(A_lower, beta=shift, mode="supernodal", ordering_method="amd")(b)
-        except CholmodNotPositiveDefiniteError:
-            shift = max(1e-10 * scale, 10.0 * shift)
-            if shift > scale:
-                raise
+    solver = CholeskySolver(A_lower, ordering="amd")
+    if allow_shift:
+        solver.factorize(A_lower)
+    elif not solver.try_factorize(A_lower):
+        return None
+    return solver.solve(b)
 
 
 def pcg(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_iterations: int):
