@@ -49,6 +49,25 @@ def test_bench_garment_cases_set_the_papers_hiphop_parameters():
         case_scene("hiphop", 0.04)
 
 
+@pytest.mark.slow
+def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
+    # The hand-over's settling (finer contact mesh, closer contacts) belongs to the
+    # pre-roll, not to the timed dance: the last SETTLE of it runs at the fine span.
+    import dataclasses
+
+    from garment.bench import garment as bench
+
+    scene = bench.case_scene
+    monkeypatch.setattr(bench, "case_scene", lambda *a: (lambda sc: dataclasses.replace(
+        sc, time=dataclasses.replace(sc.time, preroll=0.03)))(scene(*a)))
+    monkeypatch.setattr(bench, "SETTLE", 0.02)
+    (case,) = bench.run((20,), steps=1, refine=1)
+    assert (case["sew_steps"], case["settle_steps"], case["steps"]) == (1, 2, 1)
+    assert case["sewn_at_dofs"] < case["dofs"] and case["sewn_at_span_mm"] == 40
+    assert case["settle_seconds_per_step"] > 0.0 and len(case["settle_iterations"]) == 2
+    assert case["settle_newton_iterations_per_step"] == np.mean(case["settle_iterations"]) >= 1
+
+
 def test_bench_conform_garments_times_whole_panels():
     """The split pencil dress: its skirt_back's time is its five pieces together."""
     from garment.bench import conform_garments
