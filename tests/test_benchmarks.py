@@ -58,8 +58,12 @@ def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
     from garment.bench import garment as bench
 
     scene = bench.case_scene
-    monkeypatch.setattr(bench, "case_scene", lambda *a: (lambda sc: dataclasses.replace(
-        sc, time=dataclasses.replace(sc.time, preroll=0.03)))(scene(*a)))
+
+    def short_preroll(*args):
+        sc = scene(*args)
+        return dataclasses.replace(sc, time=dataclasses.replace(sc.time, preroll=0.03))
+
+    monkeypatch.setattr(bench, "case_scene", short_preroll)
     monkeypatch.setattr(bench, "SETTLE", 0.02)
     (case,) = bench.run((20,), steps=1, refine=1)
     assert (case["sew_steps"], case["settle_steps"], case["steps"]) == (1, 2, 1)
