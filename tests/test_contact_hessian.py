@@ -126,3 +126,19 @@ def test_ipctk_barrier_hessian_matches_reference(sim):
     moved = ContactHessianMap(e.contact.W, pattern).add(H, data)
     assert moved == ref_moved == 0
     assert rel_err(data, ref) < 1e-12
+
+
+def test_sum_entries_sums_each_entry_once():
+    from sim.contact.hessian_map import _sum_entries
+
+    rng = np.random.default_rng(4)
+    r, c = rng.integers(0, 30, 2000), rng.integers(0, 30, 2000)
+    v = rng.standard_normal(2000)
+    indptr, cols, vals = _sum_entries(r, c, v, 40)
+    rows = np.repeat(np.arange(40), np.diff(indptr))
+    assert len(set(zip(rows, cols))) == cols.size  # no entry twice
+    want = np.zeros((40, 40))
+    np.add.at(want, (r, c), v)
+    got = np.zeros((40, 40))
+    got[rows, cols] = vals
+    assert np.abs(got - want).max() < 1e-12 and indptr[-1] == np.count_nonzero(want)
