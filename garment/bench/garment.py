@@ -74,28 +74,29 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
         preroll = round(sc.time.preroll / sc.time.dt)
         fine = min(round(SETTLE / sc.time.dt), preroll) if levels else 0
 
-        def advance(n, into):
+        def advance(sim, n, into):
             for _ in range(n):
                 into.append(sim.step())
                 if progress is not None:
                     progress(span_mm, into[-1])
 
         sew, settle, dance = [], [], []
-        advance(preroll - fine, sew)
+        advance(sim, preroll - fine, sew)
         sew_dofs = sim.n_dofs
         with tempfile.TemporaryDirectory() as tmp:
             if levels:
                 start = time.perf_counter()
                 sim = _refined(sim, sc, levels, Path(tmp))
                 build += time.perf_counter() - start
-            advance(fine, settle)
-            advance(steps or DEFAULT_STEPS, dance)
+            advance(sim, fine, settle)
+            advance(sim, steps or DEFAULT_STEPS, dance)
+        settled = step_summary(settle)
         cases.append({
             "resolution": span_mm, "garment": case, "knot_span_mm": span_mm, "dofs": sim.n_dofs,
             "sewn_at_span_mm": span_mm * 2 ** levels, "sewn_at_dofs": sew_dofs, "build_seconds": build,
             "sew_steps": len(sew), "sew_seconds_per_step": step_summary(sew)["seconds_per_step"],
-            "settle_steps": len(settle), "settle_seconds_per_step": step_summary(settle)["seconds_per_step"],
-            "settle_newton_iterations_per_step": step_summary(settle)["newton_iterations_per_step"],
+            "settle_steps": len(settle), "settle_seconds_per_step": settled["seconds_per_step"],
+            "settle_newton_iterations_per_step": settled["newton_iterations_per_step"],
             **step_summary(dance),
             "seam_gap_max_mm": 1e3 * max(s.extra.get("seam_gap_max", 0.0) for s in dance),
             # Per step: contact-rich steps vary several-fold, so averages hide where time goes.
