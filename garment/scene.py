@@ -259,7 +259,9 @@ class ContactSpec:
     barrier; `kappa = "adaptive"` in a scene chooses it per step as IPC does,
     see sim/contact/stiffness.py), friction mu and eps_v (m/s), cloth self-contact on or off.
     seams: "merge" (closed seams share their contact vertices, sim/seam_mesh.py) or "band"
-    (contact off near every seam sample: cheaper, but cloth may cross there)."""
+    (contact off near every seam sample: cheaper, but cloth may cross there).
+    mesh_density: vertices of each cloth's contact (and output) mesh per control point;
+    the paper's default is 2, its character scenes use 1 (its table: Hiphop 65K (65K))."""
 
     enabled: bool = False
     dhat: float = 1e-3
@@ -269,6 +271,7 @@ class ContactSpec:
     eps_v: float = 1e-3
     self_contact: bool = True
     seams: str = "merge"
+    mesh_density: float = 2.0
 
 
 @dataclass
@@ -398,7 +401,7 @@ _OBSTACLE_KEYS = ("name", "mesh", "animation", "fps", "scale", "up", "translate"
 _SPIN_KEYS = ("axis", "center", "speed", "start", "ramp")
 _SPHERE_KEYS = ("center", "radius", "subdivisions")
 _PLANE_KEYS = ("point", "normal", "size")
-_CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact", "seams")
+_CONTACT_KEYS = ("enabled", "dhat", "kappa", "mu", "eps_v", "self_contact", "seams", "mesh_density")
 UP_AXES = ("y", "z")
 SEWING_MODES = ("dynamic", "quasistatic")
 
@@ -645,6 +648,7 @@ def _read_contact(root: _Table, has_obstacles: bool) -> ContactSpec:
             eps_v=t.number("eps_v", gt=0),
             self_contact=t.read("self_contact", _as_bool),
             seams=t.choice("seams", ("merge", "band")),
+            mesh_density=t.number("mesh_density", gt=0),
         )
     )
 

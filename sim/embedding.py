@@ -41,9 +41,9 @@ def interpolation_matrix(u: np.ndarray, v: np.ndarray, n: int, m: int, offset: i
     return sp.csr_matrix((val[ok], (rows, offset + I[ok] * m + J[ok])), shape=(P, n_cp))
 
 
-def default_resolution(n: int, m: int) -> tuple[int, int]:
-    """About twice as many vertices as control points (the paper's contact-mesh default)."""
-    s = np.sqrt(2.0)
+def default_resolution(n: int, m: int, density: float = 2.0) -> tuple[int, int]:
+    """About `density` vertices per control point (the paper's contact-mesh default: 2)."""
+    s = np.sqrt(density)
     return max(2, int(round(s * n))), max(2, int(round(s * m)))
 
 

@@ -100,8 +100,9 @@ class Simulator:
         self.n_cp = int(offsets[-1])
         # Sewn pieces' meshes carry matched vertices along their seams (sim/seam_mesh.py).
         self.seams = list(seams)
-        resolutions = {p.name: mesh_resolution or default_resolution(*p.shape) for p in patches}
         with_contact = contact is not None and contact.enabled
+        density = getattr(contact, "mesh_density", 2.0)
+        resolutions = {p.name: mesh_resolution or default_resolution(*p.shape, density) for p in patches}
         if with_contact and getattr(contact, "seams", "merge") == "band":
             sewn_meshes, matched, unmatched = {}, [], list(self.seams)  # all kept out of contact
         else:

@@ -62,6 +62,13 @@ def test_sheet_on_sphere_never_intersects():
     assert 0.16 < centre[2] < 0.16 + 0.01
 
 
+def test_contact_mesh_density_sets_vertices_per_control_point():
+    # 10 x 10 control points: 14 x 14 vertices by default (about 2 per point), 10 x 10 at 1.
+    for density, n in (("", 196), ("mesh_density = 1\n", 100), ("mesh_density = 4\n", 400)):
+        scene = loads_scene(DROP.format(height=0.2).replace("[time]", density + "[time]"))
+        assert Simulator.from_scene(scene).barrier.contact.n_cloth == n
+
+
 def test_barrier_derivatives_on_control_points():
     sim = Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))
     e = sim.barrier

@@ -341,6 +341,7 @@ ERRORS = {
     ),
     "unknown mode": (CLOTH + "[time]\nmode = 'static'\n", "time.mode", "'quasistatic'"),
     "unknown seam contact": (CLOTH + "[contact]\nseams = 'weld'\n", "contact.seams", "'merge', 'band'"),
+    "zero contact mesh density": (CLOTH + "[contact]\nmesh_density = 0\n", "contact.mesh_density", "> 0"),
     "unknown mesh format": (
         CLOTH + "[output]\nmesh_format = 'stl'\n",
         "output.mesh_format",
