@@ -41,8 +41,8 @@ def interpolation_matrix(u: np.ndarray, v: np.ndarray, n: int, m: int, offset: i
     return sp.csr_matrix((val[ok], (rows, offset + I[ok] * m + J[ok])), shape=(P, n_cp))
 
 
-def default_resolution(n: int, m: int, density: float = 2.0) -> tuple[int, int]:
-    """About `density` vertices per control point (the paper's contact-mesh default: 2)."""
+def default_resolution(n: int, m: int, density: float) -> tuple[int, int]:
+    """About `density` vertices per control point (garment.scene.ContactSpec.mesh_density)."""
     s = np.sqrt(density)
     return max(2, int(round(s * n))), max(2, int(round(s * m)))
 

@@ -18,6 +18,7 @@ from garment.io.garments import load_garment
 from garment.io.obstacles import load_obstacle
 from garment.materials import Material
 from garment.model import Patch
+from garment.scene import ContactSpec
 
 import ipctk
 
@@ -101,7 +102,7 @@ class Simulator:
         # Sewn pieces' meshes carry matched vertices along their seams (sim/seam_mesh.py).
         self.seams = list(seams)
         with_contact = contact is not None and contact.enabled
-        density = getattr(contact, "mesh_density", 2.0)
+        density = (contact if contact is not None else ContactSpec()).mesh_density
         resolutions = {p.name: mesh_resolution or default_resolution(*p.shape, density) for p in patches}
         if with_contact and getattr(contact, "seams", "merge") == "band":
             sewn_meshes, matched, unmatched = {}, [], list(self.seams)  # all kept out of contact
