@@ -46,7 +46,7 @@ class SimState:
     projection_backoff: tuple[int, int] = (0, 1)
     seam_multipliers: np.ndarray | None = None  # (S, 3) N/m, with seams only
     seam_gaps: np.ndarray | None = None  # (S,) m, at the multipliers' last update
-    seam_pairs: np.ndarray | None = None  # (P,) seam vertex pairs: 0 open, 1 merged, 2 apart, no contact
+    seam_pairs: np.ndarray | None = None  # (P,) seam vertex pairs: 0 open, 1 merged, 2 apart for good, 3 blocked
 
 
 # SimState fields that are None in scenes without contact, bodies or seams: stored only

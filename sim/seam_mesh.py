@@ -322,18 +322,3 @@ def merged_faces(F: np.ndarray) -> np.ndarray:
     F = F[ok]
     _, first = np.unique(np.sort(F, axis=1), axis=0, return_index=True)
     return np.ascontiguousarray(F[np.sort(first)], dtype=np.int32)
-
-
-def vertex_rings(faces: np.ndarray, n: int) -> list[np.ndarray]:
-    """Each vertex with its neighbours (sharing a triangle)."""
-    i = np.repeat(faces, 3, axis=1).ravel()
-    j = np.tile(faces, (1, 3)).ravel()
-    A = sp.csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
-    return [A.indices[A.indptr[v]:A.indptr[v + 1]] for v in range(n)]
-
-
-def exclude_all(pairs: set, vertices: np.ndarray) -> None:
-    """Add every pair (i < j) among `vertices`."""
-    v = np.asarray(vertices, np.int64)
-    I, J = np.triu_indices(len(v), 1)
-    pairs.update(zip(np.minimum(v[I], v[J]).tolist(), np.maximum(v[I], v[J]).tolist()))

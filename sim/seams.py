@@ -56,6 +56,19 @@ def seam_samples(seams: list[SeamSpec], pieces: dict, n_cp: int, rest: np.ndarra
     return SeamSamples(sp.vstack(Na).tocsr(), sp.vstack(Nb).tocsr(), np.concatenate(w))
 
 
+def nearest_pairs(sample_rest: np.ndarray, sample_seam: np.ndarray, pair_rest: np.ndarray,
+                  pair_seam: np.ndarray) -> np.ndarray:
+    """(S,) index of the matched contact-vertex pair nearest each seam sample, by rest
+    position on side a within the same seam; -1 where the seam has no pairs."""
+    out = np.full(len(sample_seam), -1, np.int64)
+    for k in np.unique(pair_seam):
+        s, p = np.flatnonzero(sample_seam == k), np.flatnonzero(pair_seam == k)
+        if len(s):
+            d = np.linalg.norm(sample_rest[s, None, :] - pair_rest[None, p, :], axis=2)
+            out[s] = p[d.argmin(axis=1)]
+    return out
+
+
 def excluded_pairs(seams: list[SeamSpec], pieces: dict, vertex_offsets: dict, rest_vertices: dict,
                    n_cp: int, rest: np.ndarray, band: float = 2.5) -> set[tuple[int, int]]:
     """Contact-mesh vertex pairs (i < j) that must never collide: across each seam near the

@@ -10,7 +10,7 @@ from garment.model import Patch
 from garment.scene import ContactSpec
 from sim.seams import SeamSpec
 from sim.simulator import Simulator
-from tests.intersections import intersecting_pairs
+from tests.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
 from tests.test_energies import fd_gradient
 
 N = 8
@@ -175,3 +175,50 @@ def test_multipliers_grow_only_while_the_gap_shrinks():
     closer[: C.shape[0] // 2, 0] += 0.005  # panel a moved 5 mm towards b: the gap shrank by 25 %
     seam.update_multipliers(closer)
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 + 1.5e4, rtol=1e-9)
+
+
+def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
+    """Sheets a (z = +h) and b (z = -h) with a seam joining their x = 0.1 edges, and a third
+    sheet at z = 0 reaching in between them over y < -0.005 (half of the seam): the pleat
+    whose folded layer ends up between the two sides of its seam."""
+    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.1, -0.1, h), (1, 0, 0), (0, 1, 0))
+    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (-0.1, -0.1, -h), (1, 0, 0), (0, 1, 0))
+    layer = Patch.rectangle("layer", (0.2, 0.095), (N, N), (0.05, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
+    t = np.linspace(0.0, N - 2.0, 30)
+    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.full(30, N - 2.0), t])
+    return Simulator([a, b, layer], [PRESETS["cotton"]] * 3, gravity=(0.0, 0.0, 0.0), dt=0.01,
+                     contact=ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam], seam_stiffness=1e6)
+
+
+def test_a_seam_blocked_by_a_layer_lets_go_there_and_takes_up_again_once_it_is_gone():
+    sim = _seam_over_a_layer()
+    W, F, _ = stacked_cloth(sim.pieces)
+    y_pair = (sim.seam_contact.W_own @ sim.C0)[sim.seam_contact.pairs[:, 0], 1]
+    y_sample = (sim.seam.samples.Na @ sim.C0)[:, 1]
+
+    def step():
+        st = sim.step()
+        assert st.converged
+        x = np.concatenate([p.W @ sim.C for p in sim.pieces])
+        assert len(intersecting_triangles(*shared_vertices(x, F))) == 0  # nothing passes through the layer
+        return st
+
+    for _ in range(8):
+        st = step()
+    over, clear = y_pair < -0.02, y_pair > 0.02
+    state = sim.seam_contact.state
+    assert st.extra["seam_pairs_blocked"] == np.count_nonzero(state == 3) >= np.count_nonzero(over) > 0
+    assert (state[over] == 3).all() and (state[clear] == 1).all()
+    assert not sim.seam.active[y_sample < -0.02].any() and sim.seam.active[y_sample > 0.02].all()
+    np.testing.assert_array_equal(sim.seam.multipliers[~sim.seam.active], 0.0)
+    gaps = sim.seam.samples.gaps(sim.C)
+    assert gaps[y_sample > 0.02].max() < 1e-4 and gaps[y_sample < -0.05].min() > sim.barrier.dhat  # not pressed shut
+    # The layer slides out from between the sheets (in its own plane, clear of both): the
+    # whole seam pulls again and closes.
+    layer = sim.pieces[2].slice
+    sim.C[layer, 1] -= 0.2
+    sim.V[layer] = 0.0
+    for _ in range(8):
+        st = step()
+    assert st.extra["seam_pairs_blocked"] == 0 and sim.seam.active.all()
+    assert (sim.seam_contact.state == 1).all() and sim.seam.samples.gaps(sim.C).max() < 1e-3

@@ -209,6 +209,8 @@ def step_line(st) -> str:
         line += f"  dmin {st.extra['min_distance']:.1e} m"
     if "seam_gap_max" in st.extra:
         line += f"  seam gap {st.extra['seam_gap_max'] * 1e3:.2f} mm"
+    if st.extra.get("seam_pairs_blocked"):
+        line += f"  blocked {st.extra['seam_pairs_blocked']:.0f}"
     return line
 
 

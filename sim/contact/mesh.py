@@ -110,3 +110,29 @@ def crossings_at(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int, vertice
     for e, f in _crossings(mesh, x, n_cloth):
         hit.update(mine.intersection(e.tolist() + f.tolist()))
     return np.array(sorted(hit), np.int64)
+
+
+def cloth_crossings_at(mesh: ContactMesh, x: np.ndarray, vertices: np.ndarray, same: np.ndarray) -> np.ndarray:
+    """Those of `vertices` (moved) on a cloth edge or triangle that crosses a cloth element
+    of unmoved vertices at positions x (V, 3), elements whose vertices share a label in
+    `same` (V,) not counted (as if those vertices were merged). Moved elements are not
+    tested against each other: they stand for alternatives, not one motion (two seams
+    closing over each other cross only halfway). Cheap where few vertices moved."""
+    moved = np.zeros(len(x), bool)
+    moved[vertices] = True
+    edges = mesh.mesh.edges[(mesh.mesh.edges < mesh.n_cloth).all(axis=1)]
+    faces = mesh.cloth_faces
+    edge_moved, face_moved = moved[edges].any(axis=1), moved[faces].any(axis=1)
+    hit = set()
+    for E, F in ((edges[edge_moved], faces[~face_moved]), (edges[~edge_moved], faces[face_moved])):
+        if len(E) == 0 or len(F) == 0:
+            continue
+        broad = ipctk.LBVH()
+        broad.build(np.asfortranarray(x), np.asfortranarray(E, dtype=np.int32), np.asfortranarray(F, dtype=np.int32), 0.0)
+        for c in broad.detect_edge_face_candidates():
+            e, f = E[c.edge_id], F[c.face_id]
+            if set(same[e]) & set(same[f]):
+                continue
+            if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+                hit.update(int(v) for v in (*e, *f) if moved[v])
+    return np.array(sorted(hit), np.int64)

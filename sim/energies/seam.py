@@ -20,7 +20,8 @@ and the gap shrinks by K_cloth / (K_cloth + k) per step towards zero rather than
 force / k. A multiplier grows only while its gap still shrinks (by 10 % per step):
 where contact blocks a seam (a pleat's folded layers between its edges) pushing harder
 would only press the layers together, without bound (dress_knife's waist tucks: Newton
-at its cap every step, contacts at 36 nm).
+at its cap every step, contacts at 36 nm). Where the contact mesh finds a seam blocked
+outright (sim/contact/seams.py), its samples let go altogether (`hold`).
 """
 
 from __future__ import annotations
@@ -56,9 +57,10 @@ class SeamEnergy(QuadraticEnergy):
         D = (samples.Na - samples.Nb).tocsr()
         self.D = D
         k = np.broadcast_to(np.asarray(stiffness, float), samples.weights.shape)
-        self.K0 = (D.T @ sp.diags(k * samples.weights) @ D).tocsr()
-        self.K = self.K0
         self.k = k
+        self.active = np.ones(D.shape[0], bool)
+        self.K0 = self._stiffness()
+        self.K = self.K0
         self.scale = 1.0
         self.multipliers = np.zeros((D.shape[0], 3))  # lambda, N/m per sample
         self.last_gaps = np.full(D.shape[0], np.inf)  # m, at the last multiplier update
@@ -70,6 +72,23 @@ class SeamEnergy(QuadraticEnergy):
         super().add_gradient(C, out)
         out += self.D.T @ self._weighted_multipliers()
 
+    def _stiffness(self) -> sp.csr_matrix:
+        return (self.D.T @ sp.diags(self.k * self.samples.weights * self.active) @ self.D).tocsr()
+
+    def hold(self, active: np.ndarray) -> bool:
+        """Pull only the samples in `active` (S,) bool; the others carry no force and
+        their multipliers start again from zero. Returns whether anything changed (the
+        caller must then re-assemble constant Hessians, IncrementalPotential.refresh_constant)."""
+        active = np.asarray(active, bool)
+        if np.array_equal(active, self.active):
+            return False
+        self.active = active
+        self.multipliers[~active] = 0.0
+        self.last_gaps[~active] = np.inf
+        self.K0 = self._stiffness()
+        self.K = self.K0 * self.scale
+        return True
+
     def _weighted_multipliers(self) -> np.ndarray:
         return self.samples.weights[:, None] * self.multipliers
 
@@ -79,7 +98,7 @@ class SeamEnergy(QuadraticEnergy):
         sewing's, not the seams' error)."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
-        closing = gaps < 0.9 * self.last_gaps
+        closing = (gaps < 0.9 * self.last_gaps) & self.active
         self.multipliers[closing] += self.k[closing, None] * g[closing]
         self.last_gaps = gaps
 
