@@ -175,13 +175,15 @@ class Simulator:
             samples = seam_samples(self.seams, {p.name: p for p in self.pieces}, self.n_cp, self._rest_points())
             # One stiffness per seam (a scalar: all alike), spread over its samples.
             k = np.broadcast_to(np.asarray(seam_stiffness, float), (len(self.seams),))
-            per_sample = np.repeat(k, [len(s.uv_a) for s in self.seams])
-            self.seam = SeamEnergy(samples, per_sample)
+            counts = [len(s.uv_a) for s in self.seams]
+            by_name = {p.name: p.material for p in self.pieces}
+            cap = [self.MULTIPLIER_CAP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
+            self.seam = SeamEnergy(samples, np.repeat(k, counts), np.repeat(cap, counts))
             self.energies.append(self.seam)
             # Each sample lets go while its nearest matched vertex pair is blocked (_hold_seams).
             rest_vertices = np.concatenate([p.topology.rest for p in self.pieces])
             self._sample_pair = nearest_pairs(
-                samples.Na @ self._rest_points(), np.repeat(np.arange(len(self.seams)), [len(s.uv_a) for s in self.seams]),
+                samples.Na @ self._rest_points(), np.repeat(np.arange(len(self.seams)), counts),
                 rest_vertices[seam_vertex_pairs[:, 0]], np.repeat(np.arange(len(matched)), [len(m[1]) for m in matched]))
         self.seam_ramp = float(seam_ramp)
         self.seam_stiffness = float(np.max(seam_stiffness))  # the ramp's end
@@ -411,6 +413,9 @@ class Simulator:
     # them over the pre-roll, and the rising stiffness then holds them below 1 mm. The start
     # is absolute, not a fraction of k: it is what grams of cloth across open gaps can take.
     SEAM_RAMP_START = 10.0
+    # Seam multipliers (sim/energies/seam.py) hold at most this many times the force per
+    # unit length the cloth carries at 100 % strain (E h; cotton 636 N/m).
+    MULTIPLIER_CAP = 2.0
     # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
     # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
     keep_crossings = False

@@ -163,9 +163,16 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
 
 
-def test_multipliers_grow_only_while_the_gap_shrinks():
+def test_multipliers_grow_only_while_the_gap_shrinks_and_never_past_twice_what_the_cloth_carries():
     seam = _two_panels(0.02).seam
     C = _two_panels(0.02).C
+    cotton = PRESETS["cotton"]
+    np.testing.assert_allclose(seam.max_force, 2.0 * cotton.E_st * cotton.h)  # 2 E h = 1272 N/m
+    seam.update_multipliers(C)  # k g = 1e6 x 0.02 = 2e4 N/m, capped
+    np.testing.assert_allclose(np.linalg.norm(seam.multipliers, axis=1), 2.0 * cotton.E_st * cotton.h, rtol=1e-12)
+
+    seam = _two_panels(0.02).seam
+    seam.max_force = np.full_like(seam.max_force, np.inf)
     seam.update_multipliers(C)  # first update: 2 cm gaps, k g = 1e6 x 0.02 = 2e4 N/m
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4, rtol=1e-9)
     before = seam.multipliers.copy()
