@@ -177,7 +177,7 @@ class Simulator:
             k = np.broadcast_to(np.asarray(seam_stiffness, float), (len(self.seams),))
             counts = [len(s.uv_a) for s in self.seams]
             by_name = {p.name: p.material for p in self.pieces}
-            cap = [self.MULTIPLIER_CAP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
+            cap = [self.MULTIPLIER_STEP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
             self.seam = SeamEnergy(samples, np.repeat(k, counts), np.repeat(cap, counts))
             self.energies.append(self.seam)
             # Each sample lets go while its nearest matched vertex pair is blocked (_hold_seams).
@@ -368,6 +368,15 @@ class Simulator:
             C[group.indices] = self.C0[group.indices] + group.displacement(t)
         return C
 
+    def seam_gaps(self) -> dict[str, float]:
+        """Largest gap (m) of each seam, by name (seams without one: their index)."""
+        gaps = self.seam.samples.gaps(self.C) if self.seam is not None else np.zeros(0)
+        out, start = {}, 0
+        for k, s in enumerate(self.seams):
+            out[s.name or str(k)] = float(gaps[start:start + len(s.uv_a)].max(initial=0.0))
+            start += len(s.uv_a)
+        return out
+
     def control_points(self, name: str) -> np.ndarray:
         piece = self._piece(name)
         return self.C[piece.slice].reshape(*piece.patch.shape, 3)
@@ -413,9 +422,9 @@ class Simulator:
     # them over the pre-roll, and the rising stiffness then holds them below 1 mm. The start
     # is absolute, not a fraction of k: it is what grams of cloth across open gaps can take.
     SEAM_RAMP_START = 10.0
-    # Seam multipliers (sim/energies/seam.py) hold at most this many times the force per
-    # unit length the cloth carries at 100 % strain (E h; cotton 636 N/m).
-    MULTIPLIER_CAP = 2.0
+    # A seam multiplier update (sim/energies/seam.py) adds at most this many times the
+    # force per unit length the cloth carries at 100 % strain (E h; cotton 636 N/m).
+    MULTIPLIER_STEP = 2.0
     # Tolerate (exclude from contact) cloth crossings in the initial state: only for states
     # handed over from a coarser run (garment/bench/garment.py), never for a scene's start.
     keep_crossings = False

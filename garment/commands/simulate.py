@@ -111,6 +111,7 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
         if not quiet:
             if stats:
                 print_run_summary(stats, [rrd, mesh_dir, checkpoint if result.checkpoints else None])
+                print_seam_summary(sim)
             if result.splits:
                 err.print(f"[yellow]{result.splits} steps were split to converge")
             if rerun_sink is not None and stats:
@@ -284,6 +285,24 @@ def print_run_summary(stats, outputs) -> None:
     for path in outputs:
         if path is not None:
             err.print(f"wrote {path}")
+
+
+def print_seam_summary(sim) -> None:
+    """The seams at the end: largest gaps, and matched pairs that could not be sewn."""
+    gaps = sim.seam_gaps()
+    if not gaps:
+        return
+    worst = sorted(gaps, key=gaps.get, reverse=True)
+    above = [name for name in worst if gaps[name] > 1e-3]
+    line = (f"seam gaps at the end: largest {gaps[worst[0]] * 1e3:.2f} mm ({worst[0]}), "
+            f"{len(above)} of {len(gaps)} seams above 1 mm")
+    if above:
+        line += " (" + ", ".join(f"{n} {gaps[n] * 1e3:.2f}" for n in above[:8]) + (", ..." if len(above) > 8 else "") + ")"
+    if sim.seam_contact is not None and len(sim.seam_contact.pairs):
+        held = np.bincount(sim.seam_contact.state, minlength=4)[2:].sum()
+        if held:
+            line += f"; {held} matched vertex pairs held open (a merge would cross cloth)"
+    err.print(line)
 
 
 def print_logging_cost(log_seconds: float, sim_seconds: float) -> None:

@@ -20,13 +20,12 @@ and the gap shrinks by K_cloth / (K_cloth + k) per step towards zero rather than
 force / k. A multiplier grows only while its gap still shrinks (by 10 % per step):
 where contact blocks a seam (a pleat's folded layers between its edges) pushing harder
 would only press the layers together, without bound (dress_knife's waist tucks: Newton
-at its cap every step, contacts at 36 nm). And a multiplier never exceeds `max_force`
-(the simulator: twice what the cloth carries at 100 % strain, 2 E h): a seam that needs
-more fights contact or a patch too coarse to follow it, not the cloth, and the first
-update (lambda = k g everywhere at once) would otherwise double the pull on seams held
-open that way (dress_knife at the end of its sewing ramp: 843 samples at 6-20 kN/m, 30x
-E h, and Newton at its cap down to dt / 8). Where the contact mesh finds a seam blocked
-outright (sim/contact/seams.py), its samples let go altogether (`hold`).
+at its cap every step, contacts at 36 nm). And one update adds at most `max_step` to a
+multiplier (the simulator: twice what the cloth carries at 100 % strain, 2 E h): the
+first update (lambda = k g everywhere at once) would otherwise double the pull on every
+seam still held open by contact or by a patch too coarse to follow it (dress_knife at the
+end of its sewing ramp: 843 samples at 6-20 kN/m, up to 30x E h, and Newton at its cap
+down to dt / 8); later updates keep adding while the gap keeps shrinking.
 """
 
 from __future__ import annotations
@@ -57,14 +56,14 @@ class SeamEnergy(QuadraticEnergy):
     """stiffness: k in N/m^2, one for all samples or one per sample (S,) (garments sewn
     with different seams)."""
 
-    def __init__(self, samples: SeamSamples, stiffness, max_force=np.inf):
-        """max_force: the largest multiplier |lambda| in N/m, one or one per sample."""
+    def __init__(self, samples: SeamSamples, stiffness, max_step=np.inf):
+        """max_step: the largest change of a multiplier per update, N/m (one or one per sample)."""
         self.samples = samples
         D = (samples.Na - samples.Nb).tocsr()
         self.D = D
         k = np.broadcast_to(np.asarray(stiffness, float), samples.weights.shape)
         self.k = k
-        self.max_force = np.broadcast_to(np.asarray(max_force, float), samples.weights.shape)
+        self.max_step = np.broadcast_to(np.asarray(max_step, float), samples.weights.shape)
         self.active = np.ones(D.shape[0], bool)
         self.K0 = self._stiffness()
         self.K = self.K0
@@ -102,14 +101,14 @@ class SeamEnergy(QuadraticEnergy):
     def update_multipliers(self, C: np.ndarray) -> None:
         """lambda += k g at the state C that ended a step, where the gap shrank by 10 %
         since the last update (full stiffness only: during the ramp the gaps are the
-        sewing's, not the seams' error), then |lambda| <= max_force."""
+        sewing's, not the seams' error), by at most max_step."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
         closing = (gaps < 0.9 * self.last_gaps) & self.active
-        self.multipliers[closing] += self.k[closing, None] * g[closing]
-        size = np.linalg.norm(self.multipliers, axis=1)
-        over = size > self.max_force
-        self.multipliers[over] *= (self.max_force[over] / size[over])[:, None]
+        step = self.k[closing, None] * g[closing]
+        size = np.linalg.norm(step, axis=1)
+        step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]
+        self.multipliers[closing] += step
         self.last_gaps = gaps
 
     def set_scale(self, scale: float) -> None:
