@@ -177,8 +177,8 @@ class Simulator:
             k = np.broadcast_to(np.asarray(seam_stiffness, float), (len(self.seams),))
             counts = [len(s.uv_a) for s in self.seams]
             by_name = {p.name: p.material for p in self.pieces}
-            cap = [self.MULTIPLIER_STEP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
-            self.seam = SeamEnergy(samples, np.repeat(k, counts), np.repeat(cap, counts))
+            max_step = [self.MULTIPLIER_STEP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
+            self.seam = SeamEnergy(samples, np.repeat(k, counts), np.repeat(max_step, counts))
             self.energies.append(self.seam)
             # Each sample lets go while its nearest matched vertex pair is blocked (_hold_seams).
             rest_vertices = np.concatenate([p.topology.rest for p in self.pieces])
@@ -283,8 +283,9 @@ class Simulator:
             self._set_piece_rows(self.barrier.contact)
         return fresh
 
-    # Seam pairs are tested for a layer between their sides once less than this many d_hat
-    # apart (SeamContact.update_blocked): a pleat's blocked pairs sit 0.4-1.5 mm apart.
+    # Open seam pairs are tested for whether they could be sewn without a crossing once less
+    # than this many d_hat apart (SeamContact.update_blocked): a pleat's blocked pairs sit
+    # 0.4-1.5 mm apart.
     BLOCK_REACH = 10.0
 
     def _hold_seams(self) -> int:

@@ -11,8 +11,8 @@ passing through cloth stays open instead: a pair whose merge would move cloth th
 cloth or body (a dart's or pleat's folded neighbours within d_hat / 2) stays two vertices
 for good (APART), and a nearly closed open pair that could not be sewn shut right now
 without cloth passing through cloth (a pleat's layer folded between or against the two
-sides) is BLOCKED until it could. The seam energy lets go of
-both (`blocked`): pulling harder would only press the layers together without bound
+sides) is BLOCKED until it could (`update_blocked`). The seam energy lets go of both
+(`SeamEnergy.hold`): pulling harder would only press the layers together without bound
 (dress_knife's knife pleats: contacts at 40 nm, Newton at its cap down to dt / 16).
 """
 
