@@ -299,7 +299,7 @@ def print_seam_summary(sim) -> None:
     if above:
         line += " (" + ", ".join(f"{n} {gaps[n] * 1e3:.2f}" for n in above[:8]) + (", ..." if len(above) > 8 else "") + ")"
     if sim.seam_contact is not None and len(sim.seam_contact.pairs):
-        held = np.bincount(sim.seam_contact.state, minlength=4)[2:].sum()
+        held = int(sim.seam_contact.held_open().sum())
         if held:
             line += f"; {held} matched vertex pairs held open (a merge would cross cloth)"
     err.print(line)

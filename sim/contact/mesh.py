@@ -79,18 +79,26 @@ class ContactMesh:
         return v[3 * self.n_cloth:].reshape(-1, 3)
 
 
+def _edge_face_crossings(x: np.ndarray, edges: np.ndarray, faces: np.ndarray, skip):
+    """(edge vertices, triangle vertices) of every edge of `edges` that passes through a
+    triangle of `faces` at positions x (V, 3), pairs for which skip(e, f) holds left out."""
+    broad = ipctk.LBVH()
+    broad.build(np.asfortranarray(x), np.asfortranarray(edges, dtype=np.int32),
+                np.asfortranarray(faces, dtype=np.int32), 0.0)
+    for c in broad.detect_edge_face_candidates():
+        e, f = edges[c.edge_id], faces[c.face_id]
+        if skip(e, f):
+            continue
+        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+            yield e, f
+
+
 def _crossings(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int):
     """(edge vertices, triangle vertices) of every edge that passes through a triangle it
     shares no vertex with, at positions x (V, 3), cloth involved (bodies may cross
     themselves)."""
-    broad = ipctk.LBVH()
-    broad.build(np.asfortranarray(x), np.asfortranarray(mesh.edges), np.asfortranarray(mesh.faces), 0.0)
-    for c in broad.detect_edge_face_candidates():
-        e, f = mesh.edges[c.edge_id], mesh.faces[c.face_id]
-        if min(e.min(), f.min()) >= n_cloth or set(e) & set(f):
-            continue
-        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
-            yield e, f
+    return _edge_face_crossings(x, mesh.edges, mesh.faces,
+                                lambda e, f: min(e.min(), f.min()) >= n_cloth or set(e) & set(f))
 
 
 def crossing_pairs(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int) -> set[tuple[int, int]]:
@@ -127,12 +135,6 @@ def cloth_crossings_at(mesh: ContactMesh, x: np.ndarray, vertices: np.ndarray, s
     for E, F in ((edges[edge_moved], faces[~face_moved]), (edges[~edge_moved], faces[face_moved])):
         if len(E) == 0 or len(F) == 0:
             continue
-        broad = ipctk.LBVH()
-        broad.build(np.asfortranarray(x), np.asfortranarray(E, dtype=np.int32), np.asfortranarray(F, dtype=np.int32), 0.0)
-        for c in broad.detect_edge_face_candidates():
-            e, f = E[c.edge_id], F[c.face_id]
-            if set(same[e]) & set(same[f]):
-                continue
-            if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
-                hit.update(int(v) for v in (*e, *f) if moved[v])
+        for e, f in _edge_face_crossings(x, E, F, lambda e, f: set(same[e]) & set(same[f])):
+            hit.update(int(v) for v in (*e, *f) if moved[v])
     return np.array(sorted(hit), np.int64)

@@ -74,6 +74,10 @@ class SeamContact:
             same[b] = a  # as if merged: the two sides' own triangles touch along the seam
             hit = cloth_crossings_at(mesh, x, np.r_[a, b], same)
             self.state[test] = np.where(np.isin(a, hit) | np.isin(b, hit), BLOCKED, OPEN)
+        return self.held_open()
+
+    def held_open(self) -> np.ndarray:
+        """(P,) pairs the seam must not pull: BLOCKED or APART."""
         return (self.state == BLOCKED) | (self.state == APART)
 
     def rows(self, mesh: ContactMesh) -> sp.csr_matrix:
