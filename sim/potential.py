@@ -90,7 +90,8 @@ class IncrementalPotential:
             return 0.0
         shift = self.correction[1]
         d = self.matrix.diagonal() - shift
-        return float(np.max(shift / np.maximum(d, 1e-300)))
+        with np.errstate(over="ignore"):  # a coupling on a (near) zero diagonal: unbounded
+            return float(np.max(shift / np.maximum(d, 1e-300)))
 
     def exact_lower(self) -> sp.csc_matrix:
         """Lower triangle of the exact Hessian, moved couplings merged back (a pattern

@@ -312,3 +312,57 @@ def test_large_factorizations_get_more_blas_threads_and_give_them_back():
     x = linsolve.solve_once(A, b)
     A_full = A + sp.tril(A, -1).T
     assert np.abs(A_full @ x - b).max() < 1e-12
+
+
+SLIDING = """
+[material]
+preset = "cotton"
+[[cloth]]
+name = "under"
+size = [0.1, 0.1]
+control_points = [5, 5]
+origin = [-0.05, -0.05, 0.0]
+velocity = [-1.0, 0.0, 0.0]
+[[cloth]]
+name = "over"
+size = [0.1, 0.1]
+control_points = [5, 5]
+origin = [-0.05, -0.05, 2e-5]
+velocity = [1.0, 0.0, -0.05]
+[load]
+gravity = [0, 0, 0]
+[contact]
+dhat = 1e-3
+kappa = 1e8
+mu = 1.0
+[time]
+dt = 0.01
+max_newton_iterations = 1
+"""
+
+
+def _longest_ccd_move(max_speed: float) -> tuple[float, int]:
+    """Two sheets 20 um apart sliding past each other at 2 m/s, pressed by a stiff
+    barrier: the lagged friction mu lambda meets only inertia along the slip. Returns the
+    longest move handed to CCD in the first Newton iteration, and the capped iterations."""
+    from garment.scene import loads_scene
+
+    sim = Simulator.from_scene(loads_scene(SLIDING), NewtonOptions(max_speed=max_speed))
+    moves, ccd = [0.0], sim.potential.max_step
+
+    def max_step(C0, C1, B1=None):
+        moves.append(float(np.abs(C1 - C0).max()))
+        return ccd(C0, C1, B1)
+
+    sim.potential.max_step = max_step
+    st = sim.step()
+    return max(moves), st.extra.get("capped_steps", 0)
+
+
+def test_line_search_starts_within_max_speed_of_a_pressed_sliding_contact():
+    # Uncapped, Newton proposes about a metre (CCD's broad phase grows every box by that).
+    free, _ = _longest_ccd_move(np.inf)
+    assert free > 0.5
+    capped, count = _longest_ccd_move(10.0)
+    assert count >= 1
+    assert capped <= 10.0 * 0.01 * (1 + 1e-12)
