@@ -60,7 +60,8 @@ def register(sub) -> None:
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--case", help="compare: comma-separated cases (hanging, drape, shear, sphere, plate, "
                                   "locking, ablation); garment: poncho (default), dress, dress-hiphop "
-                                  "(the paper's Hiphop cloth and contact) or dress-frictionless; conform-garments: "
+                                  "(the paper's Hiphop cloth and contact), dress-frictionless or dress-band (contact off "
+                                  "near the seams); conform-garments: "
                                   "dress_knife, shirt_mean, dress_pencil")
     b.add_argument("--refine", type=int, default=0, metavar="K",
                    help="garment only: sew at 2^K x the span, then refine exactly K times to it")
