@@ -378,6 +378,10 @@ class Simulator:
             start += len(s.uv_a)
         return out
 
+    def seam_pairs_held_open(self) -> int:
+        """Matched seam vertex pairs that could not be sewn (SeamContact.held_open)."""
+        return int(self.seam_contact.held_open().sum()) if self.seam_contact is not None else 0
+
     def control_points(self, name: str) -> np.ndarray:
         piece = self._piece(name)
         return self.C[piece.slice].reshape(*piece.patch.shape, 3)

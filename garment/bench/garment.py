@@ -121,7 +121,7 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
             **step_summary(dance),
             "seam_gap_max_mm": 1e3 * max(s.extra.get("seam_gap_max", 0.0) for s in dance),
             "seams_above_1mm_at_end": sum(g > 1e-3 for g in sim.seam_gaps().values()),
-            "seam_pairs_held_open_at_end": int(sim.seam_contact.held_open().sum()) if sim.seam_contact is not None else 0,
+            "seam_pairs_held_open_at_end": sim.seam_pairs_held_open(),
             # Per step: contact-rich steps vary several-fold, so averages hide where time goes.
             "settle_iterations": [s.newton_iterations for s in settle],
             "step_iterations": [s.newton_iterations for s in dance],

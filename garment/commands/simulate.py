@@ -298,10 +298,9 @@ def print_seam_summary(sim) -> None:
             f"{len(above)} of {len(gaps)} seams above 1 mm")
     if above:
         line += " (" + ", ".join(f"{n} {gaps[n] * 1e3:.2f}" for n in above[:8]) + (", ..." if len(above) > 8 else "") + ")"
-    if sim.seam_contact is not None and len(sim.seam_contact.pairs):
-        held = int(sim.seam_contact.held_open().sum())
-        if held:
-            line += f"; {held} matched vertex pairs held open (a merge would cross cloth)"
+    held = sim.seam_pairs_held_open()
+    if held:
+        line += f"; {held} matched vertex pairs held open (a merge would cross cloth)"
     err.print(line)
 
 
