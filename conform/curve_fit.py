@@ -2,7 +2,7 @@
 
 A side is the outline polyline from one corner to the next. It is sampled densely (every
 polyline vertex plus points in between, each weighted by the arc length it stands for),
-given chord-length parameters u_a = (n - 2) s_a / L, and fitted by n control points with the
+given chord-length parameters u_a = (n - 2) s_a / L (or graded ones, conform/grading.py), and fitted by n control points with the
 end points pinned to the corners and a second-difference penalty against zig-zags:
 
     min_C  sum_a (w_a / L) |C(u_a) - P_a|^2  +  lam / (n - 2) sum_i |D2 C|_i^2
@@ -29,6 +29,8 @@ import numpy as np
 from garment.model import Patch
 from sim.bspline import WINDOW, eval_1d_many
 
+from .grading import Grading
+
 LAMBDA = 1e-4
 REWEIGHT = 6
 
@@ -36,22 +38,32 @@ REWEIGHT = 6
 @dataclass
 class SideSamples:
     """Dense samples of one side: points (K, 2), arc length s (K,) from the start corner,
-    weights w (K,) (arc length each sample stands for, m), total length L (m)."""
+    weights w (K,) (arc length each sample stands for, m), total length L (m); grading:
+    the parameter map along the side in its loop direction (None: chord length)."""
 
     points: np.ndarray
     s: np.ndarray
     w: np.ndarray
+    grading: Grading | None = None
 
     @property
     def length(self) -> float:
         return float(self.s[-1])
 
     def parameters(self, n: int) -> np.ndarray:
-        """Chord-length parameters in [0, n - 2]."""
+        """Chord-length (or graded) parameters in [0, n - 2]."""
+        if self.grading is not None:
+            return self.grading.parameter(self.s / self.length, n)
         return (n - 2) * self.s / self.length
 
+    def abscissae(self, n: int) -> np.ndarray:
+        """The Greville abscissae in chord-length units (n - 2) * arc fraction, where the
+        second-difference penalty measures: a straight side costs nothing when graded too."""
+        g = Patch.greville(n)
+        return g if self.grading is None else (n - 2) * self.grading.fraction(g, n)
 
-def sample_polyline(poly: np.ndarray, spacing: float) -> SideSamples:
+
+def sample_polyline(poly: np.ndarray, spacing: float, grading: Grading | None = None) -> SideSamples:
     """Polyline vertices plus evenly spaced points so no gap exceeds `spacing`."""
     seg = np.diff(poly, axis=0)
     lens = np.linalg.norm(seg, axis=1)
@@ -68,14 +80,15 @@ def sample_polyline(poly: np.ndarray, spacing: float) -> SideSamples:
     w = np.zeros_like(S)
     w[:-1] += 0.5 * gaps
     w[1:] += 0.5 * gaps
-    return SideSamples(points=P, s=S, w=w)
+    return SideSamples(points=P, s=S, w=w, grading=grading)
 
 
-def second_difference(n: int) -> np.ndarray:
-    """(n - 2, n) matrix of second divided differences of control points over their
-    Greville abscissae 0, 0.5, 1.5, ..., n-2: C_i-1 - 2 C_i + C_i+1 inside, weighted at
-    the ends so that a uniformly parametrised straight line (linear precision) costs 0."""
-    g = Patch.greville(n)
+def second_difference(n: int, g: np.ndarray | None = None) -> np.ndarray:
+    """(n - 2, n) matrix of second divided differences of control points over abscissae g
+    (default: the Greville abscissae 0, 0.5, 1.5, ..., n-2): C_i-1 - 2 C_i + C_i+1 inside,
+    weighted at the ends so that a uniformly parametrised straight line (linear precision)
+    costs 0."""
+    g = Patch.greville(n) if g is None else g
     D = np.zeros((n - 2, n))
     for i in range(1, n - 1):
         a, b = 1.0 / (g[i] - g[i - 1]), 1.0 / (g[i + 1] - g[i])
@@ -111,7 +124,7 @@ def fit_side(side: SideSamples, n: int, lam: float = LAMBDA) -> np.ndarray:
     u = side.parameters(n)
     L = side.length
     A, b = normal_equations(u, n, side.w / L, side.points)
-    D = second_difference(n) * np.sqrt(lam / (n - 2))
+    D = second_difference(n, side.abscissae(n)) * np.sqrt(lam / (n - 2))
     A = A + D.T @ D
     C = np.empty((n, 2))
     C[0], C[-1] = side.points[0], side.points[-1]

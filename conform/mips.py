@@ -5,8 +5,9 @@ Minimises, over the control points X (n, m, 2) of the rest map X(u, v),
     E(X) = sum_q w_q f(J_q) / sum_q w_q  +  w_b E_fit(X),
     f(J) = (|J|_F^2 / det J)^2 + w_a (det J / d0 + d0 / det J),
 
-with J = dX/du diag(1/a, 1/b) the Jacobian scaled by the mean span sizes a, b along u and
-v, so a uniform grid of square cells scores the minimum whatever the panel's size and
+with J = dX/du diag(1/a, 1/b) the Jacobian scaled by the span sizes a, b along u and v -
+the mean ones, or for a graded net (conform/grading.py) the wanted ones at the point - so
+a grid of square cells of those sizes scores the minimum whatever the panel's size and
 control counts. The first term is |J|^2 |J^-1|^2 (MIPS, the paper's choice); the second,
 with d0 the mean scaled determinant, evens out the cell areas, which makes the reduced rule
 more accurate. E_fit is the side fits' least-squares objective (curve_fit) over the
@@ -80,6 +81,13 @@ class PointSet:
     def jacobians(self, X2: np.ndarray) -> np.ndarray:
         """(Q, 4) = (X_u.x, X_u.y, X_v.x, X_v.y) for the net X2 (n*m, 2)."""
         return np.concatenate([self.Du @ X2, self.Dv @ X2], axis=1)
+
+
+def point_scales(pts: PointSet, scale) -> np.ndarray:
+    """(Q, 4) factors (1/a, 1/a, 1/b, 1/b) of the Jacobians at the points; a and b are
+    numbers or functions of u and v."""
+    a, b = (np.broadcast_to(s(t) if callable(s) else float(s), t.shape) for s, t in zip(scale, (pts.u, pts.v)))
+    return np.ascontiguousarray(np.stack([1 / a, 1 / a, 1 / b, 1 / b], axis=1))
 
 
 def det(Y: np.ndarray) -> np.ndarray:
@@ -196,7 +204,7 @@ def _point_terms(Y, scale, eps, area_weight=0.0, d0=1.0, hessian=True, project=T
         lam, V = np.linalg.eigh(H)
         H = np.einsum("qij,qj,qkj->qik", V, np.maximum(lam, 0.0), V)
     S = scale
-    return f, g * S, H * S[None, :, None] * S[None, None, :]
+    return f, g * S, H * S[:, :, None] * S[:, None, :]
 
 
 @njit(cache=True, inline="always")
@@ -276,7 +284,7 @@ def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
     G = np.zeros((K, 2, 4))
     for q in range(Q):
         for i in range(4):
-            y[i] = Y[q, i] * scale[i]
+            y[i] = Y[q, i] * scale[q, i]
         A = y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]
         d = y[0] * y[3] - y[1] * y[2]
         if eps > 0.0:
@@ -296,7 +304,7 @@ def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
         gd[0], gd[1], gd[2], gd[3] = y[3], -y[2], -y[1], y[0]
         E += w[q] * f
         for i in range(4):
-            gY[q, i] = w[q] * (2.0 * gA * y[i] + gc * c1 * gd[i]) * scale[i]
+            gY[q, i] = w[q] * (2.0 * gA * y[i] + gc * c1 * gd[i]) * scale[q, i]
         kdd = gcc * c1 * c1 + gc * c2
         for i in range(4):
             for j in range(4):
@@ -310,7 +318,7 @@ def _newton_terms(Y, w, scale, eps, area_weight, d0, power, D, slot, n_blocks):
         _project_psd_4(H, Hp)
         for i in range(4):
             for j in range(4):
-                Hp[i, j] *= w[q] * scale[i] * scale[j]
+                Hp[i, j] *= w[q] * scale[q, i] * scale[q, j]
         # y index 2 alpha + d; local block (a, b): sum_alpha,beta D[alpha, a] Hp[2a+d, 2b+e] D[beta, b].
         # G[a] = D[:, a]^T Hp rows first (2 x 4 per a), then the blocks: half the flops.
         for a in range(K):
@@ -381,8 +389,8 @@ class MipsProblem:
     def __init__(self, n: int, m: int, scale: tuple[float, float], boundary: BoundaryFit | None,
                  fixed: np.ndarray, options: MipsOptions):
         self.n, self.m = n, m
-        self.scale = np.array([1 / scale[0], 1 / scale[0], 1 / scale[1], 1 / scale[1]])
         self.pts = rule_points(n, m)
+        self.scale = point_scales(self.pts, scale)
         self.W = float(self.pts.w.sum())
         self.boundary = boundary
         self.options = options
@@ -494,7 +502,8 @@ def _untangle(prob: MipsProblem, X2, options: MipsOptions, history):
 
 def refine(X: np.ndarray, scale, boundary: BoundaryFit | None, fixed_points: np.ndarray,
            options: MipsOptions | None = None) -> MipsResult:
-    """MIPS-refine the net X (n, m, 2); scale: mean span sizes (a, b) along u and v, m;
+    """MIPS-refine the net X (n, m, 2); scale: span sizes (a, b) along u and v, m, each a
+    number (the mean) or a function of the parameter (a graded net: Grading.span);
     fixed_points (n, m) bool marks control points that never move (the corners, or the
     whole boundary when w_boundary is inf)."""
     options = options or MipsOptions()

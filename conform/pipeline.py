@@ -34,6 +34,7 @@ from .boundary import Outline, PanelError, extract_outline
 from .control_net import assemble_boundary, laplace_start, match_area, refine, side_rows, tangential_start
 from .curve_fit import (LAMBDA, SideSamples, evaluate, fit_side_reweighted, normal_equations, sample_polyline,
                         second_difference)
+from .grading import SHORT, Request, grade
 from .lift import lift
 from .mips import BoundaryFit, MipsOptions
 from .mips import refine as mips_refine
@@ -48,7 +49,9 @@ class ConformOptions:
     max(1 mm, 0.5 % of the diameter)); refine: knot-insertion levels after the first MIPS
     (each halves the knot spans); lam: side-fit smoothing; mips: solver settings; split:
     "auto" (cut a panel at its darts when one patch would be badly out of balance),
-    "darts" (always cut at darts) or "never" (conform/split.py)."""
+    "darts" (always cut at darts) or "never" (conform/split.py); seam_span: the knot span
+    wanted at seams shorter than grading.SHORT knot spans (tucks, dart legs), metres - the
+    net is graded towards them (conform/grading.py); None keeps it uniform."""
 
     knot_span: float = 0.02
     control_points: tuple[int, int] | None = None
@@ -59,6 +62,7 @@ class ConformOptions:
     lam: float = LAMBDA
     mips: MipsOptions = field(default_factory=MipsOptions)
     split: str = "auto"
+    seam_span: float | None = None
 
 
 @dataclass
@@ -112,11 +116,13 @@ def counts_for(sides: Sides, options: ConformOptions) -> tuple[int, int]:
     return n, m
 
 
-def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float):
+def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float, grading=None):
     """Side fits at counts (n, m, n, m): samples (with their final IRLS weights), control
-    points and the fit errors (m)."""
+    points and the fit errors (m). grading: the (u, v) Gradings of a graded net, or None."""
     counts = (n, m, n, m)
-    fits = [fit_side_reweighted(sample_polyline(p, spacing), c, lam) for p, c in zip(sides.polylines, counts)]
+    along = side_gradings(grading)
+    fits = [fit_side_reweighted(sample_polyline(p, spacing, g), c, lam)
+            for p, c, g in zip(sides.polylines, counts, along)]
     ctrls = [f[0] for f in fits]
     samples = [f[1] for f in fits]
     errors = [side_error(p, c) for p, c in zip(sides.polylines, ctrls)]
@@ -131,10 +137,40 @@ def _grow(count: int) -> int:
     return int(np.ceil(1.25 * (count - 2))) + 2
 
 
-def _mean_spans(sides: Sides, n: int, m: int) -> tuple[float, float]:
-    """Mean knot-span sizes along u and v, metres."""
+def _spans(sides: Sides, n: int, m: int, grading=None):
+    """MIPS's target knot-span sizes along u and v, metres: the means, or on a graded net
+    functions of the parameter."""
     L = sides.lengths
-    return 0.5 * (L[0] + L[2]) / (n - 2), 0.5 * (L[1] + L[3]) / (m - 2)
+    Lu, Lv = 0.5 * (L[0] + L[2]), 0.5 * (L[1] + L[3])
+    if grading is None:
+        return Lu / (n - 2), Lv / (m - 2)
+    gu, gv = grading
+    return (lambda u: gu.span(u, n, Lu)), (lambda v: gv.span(v, m, Lv))
+
+
+def side_gradings(grading) -> list:
+    """Each side's Grading in its loop direction (sides 2 and 3 run against u and v)."""
+    if grading is None:
+        return [None] * 4
+    gu, gv = grading
+    return [gu, gv, gu.reversed(), gv.reversed()]
+
+
+def seam_requests(outline: Outline, sides: Sides, short_seams, span: float) -> list[Request]:
+    """The stretches of the sides that short seams (rest points (K, 2) each, on this
+    panel's outline) cover. A seam that only touches a side at its corner asks nothing of
+    that side."""
+    near = float(np.diff(outline.s).max())
+    requests = []
+    for pts in short_seams:
+        pos = corners_mod.loop_positions(outline, pts, near)
+        for k, (side_pos, poly) in enumerate(zip(sides.positions, sides.polylines)):
+            hit = np.isin(side_pos, pos)
+            if not hit[1:-1].any():
+                continue
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(poly, axis=0), axis=1))])[hit]
+            requests.append(Request(k, float(s.min()), float(s.max()), span))
+    return requests
 
 
 def _spacing(spacing: float, sides: Sides, n: int, m: int) -> float:
@@ -154,7 +190,9 @@ def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOpt
     # Targets on the current boundary curves (area-corrected fits), so E_fit = 0 there.
     anchored = [dataclasses.replace(s, points=evaluate(row, s.parameters(row.shape[0])))
                 for s, row in zip(samples, side_rows(X))]
-    bt = boundary_term(anchored, n, m, options.lam, float(np.sqrt(scale[0] * scale[1])))
+    L = [smp.length for smp in samples]
+    h = float(np.sqrt(0.25 * (L[0] + L[2]) * (L[1] + L[3]) / ((n - 2) * (m - 2))))  # mean span
+    bt = boundary_term(anchored, n, m, options.lam, h)
     bt.c -= bt.value(X.reshape(-1, 2)) * bt.h**2  # round-off: E_fit(X) = 0 exactly
     mips_options = dataclasses.replace(options.mips, w_boundary=w_boundary)
     return mips_refine(X, scale, bt, fixed, mips_options)
@@ -191,7 +229,7 @@ def boundary_term(samples: list[SideSamples], n: int, m: int, lam: float, h: flo
         k = row.shape[0]
         W = side.w / side.length
         A, bk = normal_equations(side.parameters(k), k, W, side.points)
-        D = second_difference(k) * np.sqrt(lam / (k - 2))
+        D = second_difference(k, side.abscissae(k)) * np.sqrt(lam / (k - 2))
         A = A + D.T @ D
         r, cc = np.meshgrid(row, row, indexing="ij")
         H = H + sp.csr_matrix((A.ravel(), (r.ravel(), cc.ravel())), shape=(n * m, n * m))
@@ -215,10 +253,12 @@ def choose_corners(panel: Panel, outline: Outline, options: ConformOptions, hint
 
 
 def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(), avoid=(),
-                  lift_from: Panel | None = None) -> tuple[Patch, dict]:
+                  lift_from: Panel | None = None, short_seams=()) -> tuple[Patch, dict]:
     """Conform one panel. hints: rest positions (P, 2) preferred as corners (seam ends);
     avoid: rest positions never made corners (points on darts); lift_from: the panel whose
-    3D placement the patch takes (default: this one; a piece of a split panel: its parent).
+    3D placement the patch takes (default: this one; a piece of a split panel: its parent);
+    short_seams: rest points (K, 2) of each short seam on the panel, which the net is
+    graded towards when options.seam_span is set.
     Returns the patch and its report (quality numbers and provenance)."""
     options = options or ConformOptions()
     start = time.perf_counter()
@@ -233,8 +273,16 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
     n, m = counts_for(sides, options)
     h_target = options.knot_span if options.control_points is None else float(
         np.mean(sides.lengths) / max(np.mean([n, m]) - 2, 1))
+    grading = None
+    requests = [] if options.seam_span is None or options.control_points is not None else seam_requests(
+        outline, sides, short_seams, min(options.seam_span, options.knot_span))
+    if requests:
+        grading = (grade(requests, sides.lengths, 0, options.knot_span, n - 2),
+                   grade(requests, sides.lengths, 1, options.knot_span, m - 2))
+        n, m = grading[0].spans + 2, grading[1].spans + 2
+        h_target = min(options.seam_span, h_target)
     spacing = min(h_target, float(np.median(np.diff(outline.s)))) / 4.0
-    samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+    samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
     rounds = 0
     while options.control_points is None and rounds < options.adapt_rounds and errors.max() > 0.8 * tol:
         rounds += 1
@@ -243,7 +291,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         if max(errors[1], errors[3]) > 0.8 * tol:
             m = _grow(m)
         spacing = _spacing(spacing, sides, n, m)
-        samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+        samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
 
     # Boundary rows with the panel's area, the interior start (the tangential projection,
     # or a harmonic net where that folds less), MIPS; then knot-insertion levels.
@@ -257,10 +305,10 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             X = refine(X)
             n, m = X.shape[:2]
             spacing = _spacing(spacing, sides, n, m)
-            samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+            samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
             Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
             X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = Xb[:, 0], Xb[-1, :], Xb[::-1, -1], Xb[0, ::-1]
-        res = _solve(X, _mean_spans(sides, n, m), samples, options, options.mips.w_boundary)
+        res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary)
         retries = 0
         while res.energy == np.inf and options.control_points is None and retries < UNTANGLE_RETRIES:
             # No valid interior at this resolution (typically tabs between darts crowding
@@ -274,10 +322,10 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             else:
                 m = _grow(m)
             spacing = _spacing(spacing, sides, n, m)
-            samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam)
+            samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
             Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
             X = interior_start(Xb)
-            res = _solve(X, _mean_spans(sides, n, m), samples, options, options.mips.w_boundary)
+            res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary)
         solves.append(res)
         X = res.X
         if res.energy == np.inf:
@@ -360,7 +408,7 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     pieces `name.0`, `name.1`, ... (plan_split), each its own patch, sewn together along
     the cuts. corners: panel (or piece) name -> 4 corners (overrides); on_panel(panel,
     report or None, error or None) after each panel or piece."""
-    from .seams import map_seam, seam_hints
+    from .seams import map_seam, seam_hints, short_seams
     from .split import split_seams
 
     options = options or ConformOptions()
@@ -402,8 +450,9 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
             hints, dart_points = seam_hints(panel.name, all_seams)
             avoid = np.concatenate([np.asarray(avoid).reshape(-1, 2), dart_points])
         opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
+        short = short_seams(panel.name, all_seams, SHORT * options.knot_span)
         try:
-            patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent)
+            patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short)
         except PanelError as e:
             failures[panel.name] = str(e)
             if on_panel:

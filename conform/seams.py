@@ -38,6 +38,18 @@ def seam_hints(panel_name: str, seams: list[PanelSeam]) -> tuple[np.ndarray, np.
     return cat(ends), cat(avoid)
 
 
+def short_seams(panel_name: str, seams: list[PanelSeam], length: float) -> list[np.ndarray]:
+    """Rest points (K, 2) of each side of a seam on this panel shorter than `length`
+    (a dart or a tuck gives its two legs)."""
+    out = []
+    for s in seams:
+        for panel, pts in ((s.panel_a, s.points_a), (s.panel_b, s.points_b)):
+            pts = np.asarray(pts, float).reshape(-1, 2)
+            if panel == panel_name and len(pts) > 1 and np.linalg.norm(np.diff(pts, axis=0), axis=1).sum() < length:
+                out.append(pts)
+    return out
+
+
 def side_uv(side: int, t: np.ndarray, n: int, m: int) -> np.ndarray:
     """(u, v) of loop-direction parameter t on side index 0..3 of an (n, m) patch."""
     t = np.asarray(t, float)

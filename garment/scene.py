@@ -290,13 +290,15 @@ class PlacementSpec:
 @dataclass
 class GarmentSpec:
     """A garment: the patches and seams of a patch file (`garment conform` output), or a
-    panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m). Seams are
-    held by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py).
+    panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m), graded
+    towards `seam_span` (m) at short seams when given (conform/grading.py). Seams are held
+    by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py).
     `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
 
     name: str
     source: Path
     knot_span: float = 0.03
+    seam_span: float | None = None
     seam_stiffness: float = 1e6
     material: Material = PRESETS["cotton"]
     placement: PlacementSpec | None = None
@@ -377,7 +379,7 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
 # --------------------------------------------------------------------------- tables
 
 _TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact", "garment")
-_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_stiffness", "material", "placement")
+_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_span_mm", "seam_stiffness", "material", "placement")
 _PLACEMENT_KEYS = ("file", "scale", "up", "translate")
 _MATERIAL_NUMBERS = {  # key -> bounds
     "E_st": {"gt": 0},
@@ -432,6 +434,7 @@ def _read_garment(t: _Table, index: int, base: Path, scene_material: Material) -
     if not src.is_file():
         t.fail(t.key("source"), f"no such file: {src}")
     span = t.number("knot_span_mm", gt=0)
+    seam_span = t.number("seam_span_mm", gt=0)
     placement = None
     if "placement" in t:
         pt = t.table("placement", _PLACEMENT_KEYS)
@@ -446,7 +449,8 @@ def _read_garment(t: _Table, index: int, base: Path, scene_material: Material) -
     return GarmentSpec(
         name=t.string("name") or f"garment{index}", source=src, placement=placement,
         material=_read_material(t.table("material", _MATERIAL_KEYS), scene_material),
-        **_given(knot_span=span / 1000.0 if span else None, seam_stiffness=t.number("seam_stiffness", gt=0)),
+        **_given(knot_span=span / 1000.0 if span else None, seam_span=seam_span / 1000.0 if seam_span else None,
+                 seam_stiffness=t.number("seam_stiffness", gt=0)),
     )
 
 

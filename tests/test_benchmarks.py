@@ -35,7 +35,8 @@ def test_wrinkle_deflection_approaches_reference():
 
 
 def test_bench_garment_cases_set_the_papers_hiphop_parameters():
-    from garment.bench.garment import case_scene
+    from garment.bench.garment import SCENES, case_scene
+    from garment.scene import load_scene
 
     sc = case_scene("dress-hiphop", 0.016, "gauss2")
     (g,) = sc.garments
@@ -46,6 +47,9 @@ def test_bench_garment_cases_set_the_papers_hiphop_parameters():
     dress = case_scene("dress", 0.04)
     assert (case_scene("dress-band", 0.04).contact.seams, dress.contact.seams) == ("band", "merge")
     assert (dress.contact.mu, dress.contact.eps_v, dress.time.newton_extrapolate) == (0.2, 1e-2, 4)
+    # The scene grades its nets towards the tucks; the bench times uniform ones.
+    assert load_scene(SCENES / "dress_rumba.toml").garments[0].seam_span == 0.008
+    assert dress.garments[0].seam_span is None
     with pytest.raises(SystemExit, match="dress-hiphop"):
         case_scene("hiphop", 0.04)
 

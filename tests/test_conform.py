@@ -95,7 +95,8 @@ def test_match_area_offsets_the_boundary():
 def test_point_energy_derivatives_match_finite_differences():
     rng = np.random.default_rng(1)
     Y = np.array([[1.0, 0.1, -0.2, 0.8], [0.7, 0.3, 0.2, 1.4], [1.2, -0.4, 0.5, 0.9]])
-    scale = np.array([1.3, 1.3, 0.8, 0.8])
+    # Per-point factors (1/a, 1/a, 1/b, 1/b), different at each point as on a graded net.
+    scale = np.array([[1.3, 1.3, 0.8, 0.8], [0.9, 0.9, 1.1, 1.1], [2.0, 2.0, 0.5, 0.5]])
     for eps, aw in ((0.0, 0.0), (0.0, 10.0), (0.3, 1.0)):
         f, g, _ = _point_terms(Y, scale, eps, aw, 0.9)
         h = 1e-6

@@ -64,7 +64,7 @@ COARSE_SEAMS = "band"
 
 
 def case_scene(case: str, span_m: float, quadrature: str | None = None):
-    """The scene of `case` with every garment at knot span `span_m`."""
+    """The scene of `case` with every garment at knot span `span_m`, uniform."""
     from garment.scene import load_scene
 
     if case not in CASES:
@@ -76,7 +76,9 @@ def case_scene(case: str, span_m: float, quadrature: str | None = None):
         material = PRESETS[preset] if preset is not None else g.material
         if quadrature is not None:
             material = dataclasses.replace(material, quadrature=quadrature)
-        garments.append(dataclasses.replace(g, material=material, knot_span=span_m))
+        # Uniform nets: the resolution is the knot span everywhere (the scene's seam_span_mm
+        # grading would put 2 mm spans at the tucks after a refinement from 32 mm).
+        garments.append(dataclasses.replace(g, material=material, knot_span=span_m, seam_span=None))
     return dataclasses.replace(sc, garments=garments, contact=dataclasses.replace(sc.contact, **contact),
                                time=dataclasses.replace(sc.time, **time_changes))
 

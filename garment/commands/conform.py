@@ -119,12 +119,15 @@ def run(args) -> int:
     span = 1e-3 * (args.knot_span if args.knot_span is not None else 20.0)
     if not span > 0:
         raise InputError("--knot-span must be positive")
+    seam_span = None if args.seam_span is None else 1e-3 * args.seam_span
+    if seam_span is not None and not seam_span > 0:
+        raise InputError("--seam-span must be positive")
     options = ConformOptions(knot_span=span, control_points=counts, refine=args.refine,
                              tolerance=None if args.tolerance is None else 1e-3 * args.tolerance,
-                             mips=MipsOptions(), split=args.split)
+                             mips=MipsOptions(), split=args.split, seam_span=seam_span)
     out_dir = Path(args.output)
     # Bad input leaves nothing behind: read it before creating the output directory.
-    panels, seams = read_input(args.input, span)
+    panels, seams = read_input(args.input, min(span, seam_span or span))
     if args.panels:
         wanted = [p.strip() for p in args.panels.split(",") if p.strip()]
         missing = set(wanted) - {p.name for p in panels}
@@ -290,6 +293,9 @@ def register(sub) -> None:
     g = c.add_mutually_exclusive_group()
     g.add_argument("--knot-span", type=float, metavar="MM", help="target knot-span size in mm (default 20)")
     g.add_argument("--control-points", metavar="NxM", help="control points along u and v for every panel")
+    c.add_argument("--seam-span", type=float, metavar="MM",
+                   help="grade the control nets towards this knot span at seams shorter than two knot spans "
+                        "(tucks, dart legs; default: uniform nets)")
     c.add_argument("--corners", action="append", metavar="PANEL=SPEC",
                    help="corners of one panel: input vertex ids i,j,k,l or rest positions x,y;x,y;x,y;x,y "
                         "(metres, nearest boundary vertex); repeatable")
