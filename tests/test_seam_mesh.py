@@ -133,3 +133,19 @@ def test_band_seams_keep_grids_and_exclude_pairs_near_the_seam():
     assert len(band.seam_contact.pairs) == 0 and band.seam_contact.excluded
     assert [len(p.topology.faces) for p in band.pieces] == [2 * 10 * 10] * 2  # the plain 11 x 11 grids
     assert len(merged.seam_contact.pairs) > 0 and not merged.seam_contact.excluded
+
+
+@pytest.mark.parametrize("keep", [False, True])
+def test_crossings_away_from_the_merged_pairs_stop_only_a_fresh_state_sewing(monkeypatch, keep):
+    # A state handed over from a coarser run (keep_crossings) may carry crossings that no
+    # merge made; they must not stop its seams from sewing, as they must for a fresh run.
+    import sim.contact.seams as seams_mod
+
+    sim = _two_panels(0.03)
+    sim.seam_contact.keep_crossings = keep
+    monkeypatch.setattr(seams_mod.ipctk, "has_intersections", lambda mesh, x: True)
+    monkeypatch.setattr(seams_mod, "crossings_at", lambda *args: np.zeros(0, np.int64))
+    merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(3)]
+    n = len(sim.seam_contact.pairs)
+    assert merged == ([0, n, 0] if keep else [0, 0, 0])
+    assert (sim.seam_contact.state == 1).all() == keep
