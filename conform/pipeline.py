@@ -64,6 +64,11 @@ class ConformOptions:
     split: str = "auto"
     seam_span: float | None = None
 
+    @property
+    def finest_span(self) -> float:
+        """The smallest knot span asked for, metres: what input curves are sampled for."""
+        return min(self.knot_span, self.seam_span or self.knot_span)
+
 
 @dataclass
 class Sides:
@@ -137,15 +142,19 @@ def _grow(count: int) -> int:
     return int(np.ceil(1.25 * (count - 2))) + 2
 
 
+def _mean_spans(lengths, n: int, m: int) -> tuple[float, float]:
+    """Mean knot-span sizes along u and v of sides `lengths` (loop order), metres."""
+    return 0.5 * (lengths[0] + lengths[2]) / (n - 2), 0.5 * (lengths[1] + lengths[3]) / (m - 2)
+
+
 def _spans(sides: Sides, n: int, m: int, grading=None):
     """MIPS's target knot-span sizes along u and v, metres: the means, or on a graded net
     functions of the parameter."""
-    L = sides.lengths
-    Lu, Lv = 0.5 * (L[0] + L[2]), 0.5 * (L[1] + L[3])
+    a, b = _mean_spans(sides.lengths, n, m)
     if grading is None:
-        return Lu / (n - 2), Lv / (m - 2)
+        return a, b
     gu, gv = grading
-    return (lambda u: gu.span(u, n, Lu)), (lambda v: gv.span(v, m, Lv))
+    return (lambda u: gu.span(u, n, a * (n - 2))), (lambda v: gv.span(v, m, b * (m - 2)))
 
 
 def side_gradings(grading) -> list:
@@ -161,15 +170,15 @@ def seam_requests(outline: Outline, sides: Sides, short_seams, span: float) -> l
     panel's outline) cover. A seam that only touches a side at its corner asks nothing of
     that side."""
     near = float(np.diff(outline.s).max())
+    arcs = [np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))]) for p in sides.polylines]
     requests = []
     for pts in short_seams:
         pos = corners_mod.loop_positions(outline, pts, near)
-        for k, (side_pos, poly) in enumerate(zip(sides.positions, sides.polylines)):
+        for k, (side_pos, arc) in enumerate(zip(sides.positions, arcs)):
             hit = np.isin(side_pos, pos)
             if not hit[1:-1].any():
                 continue
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(poly, axis=0), axis=1))])[hit]
-            requests.append(Request(k, float(s.min()), float(s.max()), span))
+            requests.append(Request(k, float(arc[hit].min()), float(arc[hit].max()), span))
     return requests
 
 
@@ -190,8 +199,7 @@ def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOpt
     # Targets on the current boundary curves (area-corrected fits), so E_fit = 0 there.
     anchored = [dataclasses.replace(s, points=evaluate(row, s.parameters(row.shape[0])))
                 for s, row in zip(samples, side_rows(X))]
-    L = [smp.length for smp in samples]
-    h = float(np.sqrt(0.25 * (L[0] + L[2]) * (L[1] + L[3]) / ((n - 2) * (m - 2))))  # mean span
+    h = float(np.sqrt(np.prod(_mean_spans([smp.length for smp in samples], n, m))))
     bt = boundary_term(anchored, n, m, options.lam, h)
     bt.c -= bt.value(X.reshape(-1, 2)) * bt.h**2  # round-off: E_fit(X) = 0 exactly
     mips_options = dataclasses.replace(options.mips, w_boundary=w_boundary)
@@ -275,12 +283,12 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         np.mean(sides.lengths) / max(np.mean([n, m]) - 2, 1))
     grading = None
     requests = [] if options.seam_span is None or options.control_points is not None else seam_requests(
-        outline, sides, short_seams, min(options.seam_span, options.knot_span))
+        outline, sides, short_seams, options.finest_span)
     if requests:
         grading = (grade(requests, sides.lengths, 0, options.knot_span, n - 2),
                    grade(requests, sides.lengths, 1, options.knot_span, m - 2))
         n, m = grading[0].spans + 2, grading[1].spans + 2
-        h_target = min(options.seam_span, h_target)
+        h_target = options.finest_span
     spacing = min(h_target, float(np.median(np.diff(outline.s)))) / 4.0
     samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
     rounds = 0

@@ -127,7 +127,7 @@ def run(args) -> int:
                              mips=MipsOptions(), split=args.split, seam_span=seam_span)
     out_dir = Path(args.output)
     # Bad input leaves nothing behind: read it before creating the output directory.
-    panels, seams = read_input(args.input, min(span, seam_span or span))
+    panels, seams = read_input(args.input, options.finest_span)
     if args.panels:
         wanted = [p.strip() for p in args.panels.split(",") if p.strip()]
         missing = set(wanted) - {p.name for p in panels}

@@ -18,10 +18,11 @@ def load_garment(spec) -> PatchSet:
         from conform.pipeline import ConformOptions, conform_all
         from garment.commands.conform import read_input
 
-        panels, seams = read_input(spec.source, min(spec.knot_span, spec.seam_span or np.inf))
+        options = ConformOptions(knot_span=spec.knot_span, seam_span=spec.seam_span)
+        panels, seams = read_input(spec.source, options.finest_span)
         if spec.placement is not None:
             place_panels(panels, spec.placement)
-        ps = conform_all(panels, seams, ConformOptions(knot_span=spec.knot_span, seam_span=spec.seam_span))
+        ps = conform_all(panels, seams, options)
     if ps.failures:
         names = ", ".join(f"{k} ({v})" for k, v in ps.failures.items())
         raise InputError(f"{spec.source}: garment {spec.name!r} has panels that did not conform: {names}")
