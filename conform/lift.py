@@ -100,20 +100,29 @@ SAMPLES_PER_SPAN = 3
 SMOOTHING = 0.01
 
 
-def lift(panel: Panel, X: np.ndarray) -> np.ndarray:
-    """World control net (n, m, 3) for the rest net X (n, m, 2)."""
+def lift(panel: Panel, X: np.ndarray, warp=None) -> np.ndarray:
+    """World control net (n, m, 3) for the rest net X (n, m, 2); warp: rest points (P, 2)
+    -> displacement (P, 3) added to the placement (folded pleats)."""
     n, m = X.shape[:2]
-    if panel.world is None or panel.faces is None:
+    mesh = panel.world is not None and panel.faces is not None
+    if not mesh and warp is None:
         return panel.place(X.reshape(-1, 2)).reshape(n, m, 3)
     u = np.linspace(0.0, n - 2, SAMPLES_PER_SPAN * (n - 2) + 1)
     v = np.linspace(0.0, m - 2, SAMPLES_PER_SPAN * (m - 2) + 1)
     U, V = np.meshgrid(u, v, indexing="ij")
     N = interpolation_matrix(U.ravel(), V.ravel(), n, m, 0, n * m)
-    tri, bary, _ = locate(panel, N @ X.reshape(-1, 2))
-    target = np.einsum("kj,kjd->kd", bary, panel.world[panel.faces[tri]])
-    # Smooth the departure from the best affine placement, so flat (affine) placements,
-    # which quadratic B-splines reproduce, come out exact.
-    C_affine = np.c_[X.reshape(-1, 2), np.ones(n * m)] @ _affine_map(panel)
+    P = N @ X.reshape(-1, 2)
+    if mesh:
+        tri, bary, _ = locate(panel, P)
+        target = np.einsum("kj,kjd->kd", bary, panel.world[panel.faces[tri]])
+        # Smooth the departure from the best affine placement, so flat (affine)
+        # placements, which quadratic B-splines reproduce, come out exact.
+        C_affine = np.c_[X.reshape(-1, 2), np.ones(n * m)] @ _affine_map(panel)
+    else:
+        target, C_affine = panel.place(P), panel.place(X.reshape(-1, 2))
+    if warp is not None:  # the warp evaluated exactly, not through the mesh's chords
+        target = target + warp(P)
+        C_affine = C_affine + warp(X.reshape(-1, 2))
     D = _second_differences(n, m)
     A = N.T @ N
     w = SMOOTHING * A.diagonal().mean()

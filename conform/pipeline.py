@@ -51,7 +51,9 @@ class ConformOptions:
     "auto" (cut a panel at its darts when one patch would be badly out of balance),
     "darts" (always cut at darts) or "never" (conform/split.py); seam_span: the knot span
     wanted at seams shorter than grading.SHORT knot spans (tucks, dart legs), metres - the
-    net is graded towards them (conform/grading.py); None keeps it uniform."""
+    net is graded towards them (conform/grading.py); None keeps it uniform. fold_pleats:
+    fold the panels' tucks and knife pleats into their 3D placement, so sewing starts with
+    the layers in order (conform/pleats.py)."""
 
     knot_span: float = 0.02
     control_points: tuple[int, int] | None = None
@@ -63,6 +65,7 @@ class ConformOptions:
     mips: MipsOptions = field(default_factory=MipsOptions)
     split: str = "auto"
     seam_span: float | None = None
+    fold_pleats: bool = False
 
     @property
     def finest_span(self) -> float:
@@ -261,12 +264,13 @@ def choose_corners(panel: Panel, outline: Outline, options: ConformOptions, hint
 
 
 def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(), avoid=(),
-                  lift_from: Panel | None = None, short_seams=()) -> tuple[Patch, dict]:
+                  lift_from: Panel | None = None, short_seams=(), warp=None) -> tuple[Patch, dict]:
     """Conform one panel. hints: rest positions (P, 2) preferred as corners (seam ends);
     avoid: rest positions never made corners (points on darts); lift_from: the panel whose
     3D placement the patch takes (default: this one; a piece of a split panel: its parent);
     short_seams: rest points (K, 2) of each short seam on the panel, which the net is
-    graded towards when options.seam_span is set.
+    graded towards when options.seam_span is set; warp: rest points -> displacement of
+    the placement (folded pleats, conform/pleats.py).
     Returns the patch and its report (quality numbers and provenance)."""
     options = options or ConformOptions()
     start = time.perf_counter()
@@ -340,7 +344,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             raise PanelError(panel, f"could not untangle the control net ({n} x {m}); try other corners "
                                     "or a finer knot span")
 
-    world = lift(lift_from if lift_from is not None else panel, X)
+    world = lift(lift_from if lift_from is not None else panel, X, warp)
     patch = Patch(panel.name, X, world)
     rep = report(outline, X, tol)
     rep.update({
@@ -428,6 +432,11 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
 
         raise InputError(f"corners: no panel named {', '.join(sorted(unknown))}")
     patches, quality, prov, failures, tol, splits = {}, {}, {}, {}, {}, {}
+    warps, flat = {}, {}
+    if options.fold_pleats:
+        from .pleats import fold_panels
+
+        warps, flat = fold_panels(panels, seams, options.finest_span)
 
     # 1. Plan: outlines, splits, and the seams moved onto the pieces. Corner hints of
     # panels that stay whole come from the seams as given.
@@ -460,7 +469,8 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
         short = short_seams(panel.name, all_seams, SHORT * options.knot_span)
         try:
-            patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short)
+            patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short,
+                                       warp=warps.get(parent.name if parent is not None else panel.name))
         except PanelError as e:
             failures[panel.name] = str(e)
             if on_panel:
@@ -469,6 +479,11 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         prov[panel.name] = rep.pop("provenance")
         if split is not None:
             prov[panel.name].update(piece_provenance(split, panel.name))
+        origin = parent.name if parent is not None else panel.name
+        if origin in warps:
+            rep["pleat_folds"] = int(warps[origin].fold.lines.size)
+        if flat.get(origin):
+            rep["pleats_left_flat"] = flat[origin]
         patches[panel.name], quality[panel.name] = patch, rep
         tol[panel.name] = 2e-3 * rep["tolerance_mm"]  # twice the fit tolerance, metres
         if on_panel:

@@ -291,7 +291,8 @@ class PlacementSpec:
 class GarmentSpec:
     """A garment: the patches and seams of a patch file (`garment conform` output), or a
     panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m), graded
-    towards `seam_span` (m) at short seams when given (conform/grading.py). Seams are held
+    towards `seam_span` (m) at short seams when given (conform/grading.py), its tucks and
+    knife pleats folded into the placement with `fold_pleats` (conform/pleats.py). Seams are held
     by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py).
     `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
 
@@ -299,6 +300,7 @@ class GarmentSpec:
     source: Path
     knot_span: float = 0.03
     seam_span: float | None = None
+    fold_pleats: bool = False
     seam_stiffness: float = 1e6
     material: Material = PRESETS["cotton"]
     placement: PlacementSpec | None = None
@@ -379,7 +381,8 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
 # --------------------------------------------------------------------------- tables
 
 _TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact", "garment")
-_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_span_mm", "seam_stiffness", "material", "placement")
+_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_span_mm", "fold_pleats", "seam_stiffness", "material",
+                 "placement")
 _PLACEMENT_KEYS = ("file", "scale", "up", "translate")
 _MATERIAL_NUMBERS = {  # key -> bounds
     "E_st": {"gt": 0},
@@ -450,7 +453,7 @@ def _read_garment(t: _Table, index: int, base: Path, scene_material: Material) -
         name=t.string("name") or f"garment{index}", source=src, placement=placement,
         material=_read_material(t.table("material", _MATERIAL_KEYS), scene_material),
         **_given(knot_span=span / 1000.0 if span else None, seam_span=seam_span / 1000.0 if seam_span else None,
-                 seam_stiffness=t.number("seam_stiffness", gt=0)),
+                 seam_stiffness=t.number("seam_stiffness", gt=0), fold_pleats=t.read("fold_pleats", _as_bool)),
     )
 
 

@@ -124,7 +124,8 @@ def run(args) -> int:
         raise InputError("--seam-span must be positive")
     options = ConformOptions(knot_span=span, control_points=counts, refine=args.refine,
                              tolerance=None if args.tolerance is None else 1e-3 * args.tolerance,
-                             mips=MipsOptions(), split=args.split, seam_span=seam_span)
+                             mips=MipsOptions(), split=args.split, seam_span=seam_span,
+                             fold_pleats=args.fold_pleats)
     out_dir = Path(args.output)
     # Bad input leaves nothing behind: read it before creating the output directory.
     panels, seams = read_input(args.input, options.finest_span)
@@ -296,6 +297,9 @@ def register(sub) -> None:
     c.add_argument("--seam-span", type=float, metavar="MM",
                    help="grade the control nets towards this knot span at seams shorter than two knot spans "
                         "(tucks, dart legs; default: uniform nets)")
+    c.add_argument("--fold-pleats", action="store_true",
+                   help="fold tucks and knife pleats into the panels' 3D placement, so sewing starts with the "
+                        "layers in order")
     c.add_argument("--corners", action="append", metavar="PANEL=SPEC",
                    help="corners of one panel: input vertex ids i,j,k,l or rest positions x,y;x,y;x,y;x,y "
                         "(metres, nearest boundary vertex); repeatable")

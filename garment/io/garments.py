@@ -18,7 +18,7 @@ def load_garment(spec) -> PatchSet:
         from conform.pipeline import ConformOptions, conform_all
         from garment.commands.conform import read_input
 
-        options = ConformOptions(knot_span=spec.knot_span, seam_span=spec.seam_span)
+        options = ConformOptions(knot_span=spec.knot_span, seam_span=spec.seam_span, fold_pleats=spec.fold_pleats)
         panels, seams = read_input(spec.source, options.finest_span)
         if spec.placement is not None:
             place_panels(panels, spec.placement)
