@@ -13,7 +13,7 @@ from conform.pipeline import conform_all
 from garment.errors import InputError
 from garment.io.panels import read_panels
 from garment.model import Panel, PanelSeam
-from garment.scene import parse_scene
+from garment.scene import load_scene, parse_scene
 from tests.test_conform import polygon_panel
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -146,3 +146,14 @@ def test_scene_garments_take_fold_pleats_as_a_boolean():
     assert not parse_scene({"garment": [{"source": source}]}, "dress.toml").garments[0].fold_pleats
     with pytest.raises(InputError, match="dress.toml.*fold_pleats.*true or false"):
         parse_scene({"garment": [{"source": source, "fold_pleats": "yes"}]}, "dress.toml")
+
+
+def test_the_folded_dress_scene_is_the_dress_scene_with_its_pleats_folded():
+    import dataclasses
+
+    plain = load_scene(ROOT / "assets" / "scenes" / "dress_rumba.toml")
+    folded = load_scene(ROOT / "assets" / "scenes" / "dress_rumba_folded.toml")
+    assert folded.garments[0].fold_pleats and not plain.garments[0].fold_pleats
+    assert dataclasses.replace(folded.garments[0], fold_pleats=False) == plain.garments[0]
+    for key in ("obstacles", "contact", "time", "load"):
+        assert getattr(folded, key) == getattr(plain, key), key
