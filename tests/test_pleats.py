@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -10,11 +11,14 @@ import pytest
 import conform.pleats as pleats
 from conform import ConformOptions
 from conform.pipeline import conform_all
+from garment.cli import main
 from garment.errors import InputError
 from garment.io.panels import read_panels
+from garment.io.patchfile import load_patchset
 from garment.model import Panel, PanelSeam
 from garment.scene import load_scene, parse_scene
 from tests.test_conform import polygon_panel
+from tests.test_pleat_sewing import _pleated
 
 ROOT = Path(__file__).resolve().parents[1]
 RECT = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 0.15], [0.0, 0.15]])
@@ -149,11 +153,21 @@ def test_scene_garments_take_fold_pleats_as_a_boolean():
 
 
 def test_the_folded_dress_scene_is_the_dress_scene_with_its_pleats_folded():
-    import dataclasses
-
     plain = load_scene(ROOT / "assets" / "scenes" / "dress_rumba.toml")
     folded = load_scene(ROOT / "assets" / "scenes" / "dress_rumba_folded.toml")
     assert folded.garments[0].fold_pleats and not plain.garments[0].fold_pleats
     assert dataclasses.replace(folded.garments[0], fold_pleats=False) == plain.garments[0]
     for key in ("obstacles", "contact", "time", "load"):
         assert getattr(folded, key) == getattr(plain, key), key
+
+
+def test_garment_conform_folds_pleats_on_request(tmp_path):
+    source = _pleated(tmp_path / "pleat.obj")
+    for flag, out in (([], "flat"), (["--fold-pleats"], "folded")):
+        code = main(["conform", str(source), "-o", str(tmp_path / out), "-q", "--knot-span", "40",
+                     "--seam-span", "8"] + flag)
+        assert code == 0
+    flat, folded = (load_patchset(tmp_path / d / "patches.json") for d in ("flat", "folded"))
+    assert folded.quality["skirt"]["pleat_folds"] == 2 and "pleat_folds" not in flat.quality["skirt"]
+    lift = np.abs(folded.patches[0].world[..., 1] - flat.patches[0].world[..., 1]).max()
+    assert lift > 3e-3  # the skirt lifted off its plane (y = 0) at the pleat
