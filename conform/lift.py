@@ -117,7 +117,7 @@ def lift(panel: Panel, X: np.ndarray, warp=None) -> np.ndarray:
         target = np.einsum("kj,kjd->kd", bary, panel.world[panel.faces[tri]])
         # Smooth the departure from the best affine placement, so flat (affine)
         # placements, which quadratic B-splines reproduce, come out exact.
-        C_affine = np.c_[X.reshape(-1, 2), np.ones(n * m)] @ _affine_map(panel)
+        C_affine = np.c_[X.reshape(-1, 2), np.ones(n * m)] @ affine_map(panel)
     else:
         target, C_affine = panel.place(P), panel.place(X.reshape(-1, 2))
     if warp is not None:  # the warp evaluated exactly, not through the mesh's chords
@@ -130,10 +130,12 @@ def lift(panel: Panel, X: np.ndarray, warp=None) -> np.ndarray:
     return C.reshape(n, m, 3)
 
 
-def _affine_map(panel: Panel) -> np.ndarray:
-    """(3, 3) M of the least-squares affine placement world ~ [rest, 1] M."""
+def affine_map(panel: Panel) -> np.ndarray:
+    """(3, 3) M of the least-squares affine placement world ~ [rest, 1] M (the rigid
+    transform's, for a panel without a 3D layout)."""
+    world = panel.world if panel.world is not None else panel.place(panel.rest)
     R = np.c_[panel.rest, np.ones(len(panel.rest))]
-    return np.linalg.lstsq(R, panel.world, rcond=None)[0]
+    return np.linalg.lstsq(R, world, rcond=None)[0]
 
 
 def _second_differences(n: int, m: int):

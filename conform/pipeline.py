@@ -468,9 +468,10 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
             avoid = np.concatenate([np.asarray(avoid).reshape(-1, 2), dart_points])
         opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
         short = short_seams(panel.name, all_seams, SHORT * options.knot_span)
+        origin = parent.name if parent is not None else panel.name  # whose placement it takes
         try:
             patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short,
-                                       warp=warps.get(parent.name if parent is not None else panel.name))
+                                       warp=warps.get(origin))
         except PanelError as e:
             failures[panel.name] = str(e)
             if on_panel:
@@ -479,7 +480,6 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         prov[panel.name] = rep.pop("provenance")
         if split is not None:
             prov[panel.name].update(piece_provenance(split, panel.name))
-        origin = parent.name if parent is not None else panel.name
         if origin in warps:
             rep["pleat_folds"] = int(warps[origin].fold.lines.size)
         if flat.get(origin):

@@ -30,6 +30,8 @@ import numpy as np
 
 from garment.model import Panel, PanelSeam
 
+from .lift import affine_map
+
 # How far each fold line turns the placement (a quarter of the way would do to set it).
 FOLD_ANGLE = np.radians(60.0)
 # Pleats shallower than this many of the finest knot spans are left flat: the net cannot
@@ -87,7 +89,8 @@ class PleatFold:
         at = np.concatenate([[lines[0]], lines[0] + np.cumsum(direction[1:-1] * np.diff(lines))])
         s = np.asarray(s, float)
         k = np.searchsorted(lines, s, side="right")  # lines passed
-        return np.where(k == 0, s, at[np.maximum(k - 1, 0)] + direction[k] * (s - lines[np.maximum(k - 1, 0)]))
+        last = np.maximum(k - 1, 0)
+        return np.where(k == 0, s, at[last] + direction[k] * (s - lines[last]))
 
 
 GRID = 5e-5  # metres between the samples the profile is integrated on
@@ -130,6 +133,11 @@ def _integrate(lines, angles, groups, tilts, width, s) -> tuple[np.ndarray, np.n
 # ----------------------------------------------------------------------------- finding
 
 
+def _across(e: np.ndarray) -> np.ndarray:
+    """The rest-plane unit vector at right angles to unit direction e."""
+    return np.array([-e[1], e[0]])
+
+
 def _tuck_line(a: np.ndarray, b: np.ndarray):
     """(unit direction, tip point, root points) of a seam sewing stretch a to stretch b
     of one straight side, facing each other; None for any other seam (a dart's legs meet
@@ -146,7 +154,7 @@ def _tuck_line(a: np.ndarray, b: np.ndarray):
         length = np.linalg.norm(run)
         if length > 0.0 and sign * (run @ e) < np.cos(STRAIGHT) * length:
             return None
-    off = (np.concatenate([a, b]) - a[outer]) @ np.array([-e[1], e[0]])
+    off = (np.concatenate([a, b]) - a[outer]) @ _across(e)
     if np.abs(off).max() > np.tan(STRAIGHT) * 0.5 * gap[outer]:
         return None
     return e, 0.5 * (a[inner] + b[inner]), (a[outer], b[outer])
@@ -168,9 +176,8 @@ def find_tucks(panel: str, seams: list[PanelSeam]):
     # depth of its line.
     best = []
     for _, _, _, e0, tip0, _ in found:
-        normal = np.array([-e0[1], e0[0]])
         same = [f for f in found if abs(f[3] @ e0) >= np.cos(STRAIGHT)
-                and abs((f[4] - tip0) @ normal) <= np.linalg.norm(f[5][1] - f[5][0])]
+                and abs((f[4] - tip0) @ _across(e0)) <= np.linalg.norm(f[5][1] - f[5][0])]
         if len(same) > len(best):
             best = same
     e0 = best[0][3]
@@ -276,7 +283,7 @@ def _sewn_elsewhere(panel: str, seams: list[PanelSeam], origin, e, near: float) 
     if not pts:
         return np.zeros(0)
     rel = np.concatenate(pts) - origin
-    return (rel @ e)[np.abs(rel @ np.array([-e[1], e[0]])) <= near]
+    return (rel @ e)[np.abs(rel @ _across(e)) <= near]
 
 
 def _level_tilt(lines, angles, group, width) -> float:
@@ -325,12 +332,11 @@ def fold_panels(panels: list[Panel], seams: list[PanelSeam], span: float) -> tup
             notes[panel.name] = why
         if fold is None:
             continue
-        world = worlds[panel.name]
-        A = np.linalg.lstsq(np.c_[panel.rest, np.ones(len(panel.rest))], world, rcond=None)[0]
+        A = affine_map(panel)
         along = fold.direction @ A[:2]
         normal = np.cross(A[0], A[1])
         normal /= np.linalg.norm(normal)
-        if normal @ (world.mean(axis=0) - centre) < 0.0:
+        if normal @ (worlds[panel.name].mean(axis=0) - centre) < 0.0:
             normal = -normal
         s = fold.side(panel.rest)
         shift = float(np.mean(fold.profile(s)[0] - s))
