@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -152,13 +151,9 @@ def test_scene_garments_take_fold_pleats_as_a_boolean():
         parse_scene({"garment": [{"source": source, "fold_pleats": "yes"}]}, "dress.toml")
 
 
-def test_the_folded_dress_scene_is_the_dress_scene_with_its_pleats_folded():
-    plain = load_scene(ROOT / "assets" / "scenes" / "dress_rumba.toml")
-    folded = load_scene(ROOT / "assets" / "scenes" / "dress_rumba_folded.toml")
-    assert folded.garments[0].fold_pleats and not plain.garments[0].fold_pleats
-    assert dataclasses.replace(folded.garments[0], fold_pleats=False) == plain.garments[0]
-    for key in ("obstacles", "contact", "time", "load"):
-        assert getattr(folded, key) == getattr(plain, key), key
+def test_the_bundled_dress_scene_folds_its_pleats():
+    scene = load_scene(ROOT / "assets" / "scenes" / "dress_rumba.toml")
+    assert [g.fold_pleats for g in scene.garments] == [True]
 
 
 def test_garment_conform_folds_pleats_on_request(tmp_path):
