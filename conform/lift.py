@@ -133,9 +133,8 @@ def lift(panel: Panel, X: np.ndarray, warp=None) -> np.ndarray:
 def affine_map(panel: Panel) -> np.ndarray:
     """(3, 3) M of the least-squares affine placement world ~ [rest, 1] M (the rigid
     transform's, for a panel without a 3D layout)."""
-    world = panel.world if panel.world is not None else panel.place(panel.rest)
     R = np.c_[panel.rest, np.ones(len(panel.rest))]
-    return np.linalg.lstsq(R, world, rcond=None)[0]
+    return np.linalg.lstsq(R, panel.positions(), rcond=None)[0]
 
 
 def _second_differences(n: int, m: int):

@@ -323,7 +323,7 @@ class PleatWarp:
 def fold_panels(panels: list[Panel], seams: list[PanelSeam], span: float) -> tuple[dict, dict]:
     """The warps of the panels whose tucks fold (by name) for nets of knot span `span`
     (m), and notes on the tucks left flat."""
-    worlds = {p.name: p.world if p.world is not None else p.place(p.rest) for p in panels}
+    worlds = {p.name: p.positions() for p in panels}
     centre = np.concatenate(list(worlds.values())).mean(axis=0)
     warps, notes = {}, {}
     for panel in panels:

@@ -129,6 +129,10 @@ class Panel:
         if self.corner_hints is None:
             self.corner_hints = np.zeros(0, dtype=np.int64)
 
+    def positions(self) -> np.ndarray:
+        """(V, 3) the vertices in 3D: `world`, or the rest layout placed."""
+        return self.world if self.world is not None else self.place(self.rest)
+
     def place(self, points: np.ndarray) -> np.ndarray:
         """3D positions (P, 3) of rest points (P, 2) under the rigid transform (or z = 0)."""
         points = np.asarray(points, float)
