@@ -94,95 +94,14 @@ def solve_once(A_lower: sp.csc_matrix, b: np.ndarray, allow_shift: bool = True) 
     positive definite, or None when `allow_shift` is off), solve.
 
     Ordered by AMD alone: CHOLMOD's default also tries METIS, which on the 61K-DOF dress
-    (contact couplings merged) spends 1.0 s to save 0.2 s of the 0.9 s factorization;
-    AMD analyses in 0.13 s."""
-    return _factor_and_solve(CholeskySolver(A_lower, ordering="amd"), A_lower, b, allow_shift)
-
-
-def _factor_and_solve(solver: CholeskySolver, A_lower, b, allow_shift: bool) -> np.ndarray | None:
+    (contact couplings merged: a pattern new at nearly every Newton iteration) spends
+    1.0 s to save 0.2 s of the 0.9 s factorization; AMD analyses in 0.13 s."""
+    solver = CholeskySolver(A_lower, ordering="amd")
     if allow_shift:
         solver.factorize(A_lower)
     elif not solver.try_factorize(A_lower):
         return None
     return solver.solve(b)
-
-
-# A pattern is analysed afresh (rather than joined to the one analysed) when the join
-# would hold this many times the entries in use: stale entries only add fill.
-STALE_ENTRIES = 1.1
-
-
-class MergedSolver:
-    """Solves F - diag(shift) + tril(B) for a lower matrix F of a fixed pattern and
-    couplings B outside it, both changing from one Newton iteration to the next (contact
-    merged back, sim/newton.py), reusing one symbolic analysis while they can.
-
-    The pattern is F's nonzero entries (its contact blocks are mostly zero: factoring
-    them would add a third to the fill) and B's, joined with those since the last
-    analysis; a matrix that falls inside it is padded with zeros and only refactored.
-    Contacts come and go slowly, so most iterations skip the ordering (AMD: 0.14 s of a
-    1.07 s solve on the 61K-DOF dress)."""
-
-    def __init__(self):
-        self.analyses = 0
-        self.reuses = 0
-        self._slots = None  # which of F's entries the pattern analysed holds
-        self._keys = None  # its couplings: sorted keys column * n + row
-
-    def solve(self, F: sp.csc_matrix, shift: np.ndarray, B: sp.spmatrix, b: np.ndarray,
-              allow_shift: bool = True) -> np.ndarray | None:
-        n = F.shape[0]
-        low = sp.tril(B, format="coo")
-        on_diagonal = low.row == low.col  # in F already
-        shift = shift - np.bincount(low.row[on_diagonal], low.data[on_diagonal], minlength=n)
-        low = sp.tril(B, -1, format="coo")
-        keys = low.col.astype(np.int64) * n + low.row
-        order = np.argsort(keys)
-        keys, values = keys[order], low.data[order]
-        slots = F.data != 0.0
-        slots[F.indptr[:-1]] = True  # the diagonal (first in each column), shifted
-        if self._covers(F, slots, keys):
-            self.reuses += 1
-        else:
-            analyse = slots, keys
-            if self._slots is not None and self._slots.size == slots.size:
-                joined = slots | self._slots, np.union1d(self._keys, keys)
-                if np.count_nonzero(joined[0]) + joined[1].size <= \
-                        STALE_ENTRIES * (np.count_nonzero(slots) + keys.size):
-                    analyse = joined
-            self._analyse(F, *analyse)
-            self.analyses += 1
-        data = np.zeros(self._pattern.nnz)
-        data[self._fixed] = F.data[self._slots]
-        data[self._diagonal] -= shift
-        data[self._coupled[np.searchsorted(self._keys, keys)]] = values
-        A = sp.csc_matrix((data, self._pattern.indices, self._pattern.indptr), shape=(n, n))
-        return _factor_and_solve(self._solver, A, b, allow_shift)
-
-    def _covers(self, F, slots, keys) -> bool:
-        if self._slots is None or self._slots.size != slots.size or np.any(slots & ~self._slots):
-            return False
-        at = np.minimum(np.searchsorted(self._keys, keys), self._keys.size - 1)
-        return bool(np.all(self._keys[at] == keys)) if keys.size else True
-
-    def _analyse(self, F: sp.csc_matrix, slots: np.ndarray, keys: np.ndarray) -> None:
-        n = F.shape[0]
-        if not F.has_sorted_indices or not np.array_equal(F.indices[F.indptr[:-1]], np.arange(n)):
-            raise ValueError("MergedSolver: F needs sorted rows, the diagonal first in each column")
-        # F's entries in use tagged 1, the couplings 2: disjoint, so the sum's (sorted)
-        # entries say where each lands, F's in their own order.
-        cols = np.repeat(np.arange(n), np.diff(F.indptr))[slots]
-        F1 = sp.csc_matrix((np.ones(cols.size), (F.indices[slots], cols)), shape=F.shape)
-        K = sp.csc_matrix((np.full(keys.size, 2.0), (keys % n, keys // n)), shape=F.shape)
-        P = (F1 + K).tocsc()
-        P.sort_indices()
-        self._pattern = P
-        self._fixed = np.flatnonzero(P.data == 1.0)
-        self._coupled = np.flatnonzero(P.data == 2.0)
-        self._slots, self._keys = slots, keys
-        # The diagonal's place among F's entries in use, then in P.
-        self._diagonal = self._fixed[np.cumsum(slots)[F.indptr[:-1]] - 1]
-        self._solver = CholeskySolver(P, ordering="amd")
 
 
 def pcg(apply_A, b: np.ndarray, precondition, x0: np.ndarray, rtol: float, max_iterations: int):

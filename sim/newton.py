@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linsolve import neumann, pcg
+from .linsolve import neumann, pcg, solve_once
 from .potential import IncrementalPotential
 from .stats import StepStats
 
@@ -203,11 +203,8 @@ def _direction(ip, C, g, drive, opts, stats, allow_fail):
     # with that factor; otherwise merge them and factor once.
     exact = ip.correction is not None and opts.off_pattern != "diagonal"
     if exact and (opts.off_pattern == "merge" or ip.coupling_bound() >= 1.0):
-        B, shift = ip.correction
-        analyses = ip.merged.analyses
-        p = ip.merged.solve(ip.matrix, shift, B, rhs, allow_shift=not allow_fail)
+        p = solve_once(ip.exact_lower(), rhs, allow_shift=not allow_fail)
         stats.t_factorization += time.perf_counter() - t0
-        stats.extra["merged_analyses"] = stats.extra.get("merged_analyses", 0) + ip.merged.analyses - analyses
         if p is None:
             return None
         stats.extra["merged_solves"] = stats.extra.get("merged_solves", 0) + 1

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from .assembly import BlockPattern
 from .energies.base import Energy
-from .linsolve import CholeskySolver, MergedSolver
+from .linsolve import CholeskySolver
 
 
 class IncrementalPotential:
@@ -32,7 +32,6 @@ class IncrementalPotential:
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.correction = None
         self.solver = CholeskySolver(self.matrix)
-        self.merged = MergedSolver()  # the exact Hessian, couplings merged (newton.py)
         self.variable = [e for e in energies if e.variable_pattern]
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
@@ -96,7 +95,7 @@ class IncrementalPotential:
 
     def exact_lower(self) -> sp.csc_matrix:
         """Lower triangle of the exact Hessian, moved couplings merged back (a pattern
-        of its own; `merged` solves with it without building it)."""
+        of its own, for a one-off factorization)."""
         L = self.matrix.copy()
         if self.correction is not None:
             B, shift = self.correction

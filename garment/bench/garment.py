@@ -121,10 +121,6 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
             "settle_steps": len(settle), "settle_seconds_per_step": settled["seconds_per_step"],
             "settle_newton_iterations_per_step": settled["newton_iterations_per_step"],
             **step_summary(dance),
-            # Contact merged into the factored matrix (sim/linsolve.py MergedSolver): how
-            # often, and how often its pattern had to be analysed again.
-            **{f"{key}_per_step": sum(s.extra.get(key, 0) for s in dance) / len(dance)
-               for key in ("merged_solves", "merged_analyses")},
             "seam_gap_max_mm": 1e3 * max(s.extra.get("seam_gap_max", 0.0) for s in dance),
             "seams_above_1mm_at_end": sum(g > 1e-3 for g in sim.seam_gaps().values()),
             "seam_pairs_held_open_at_end": sim.seam_pairs_held_open(),
