@@ -33,6 +33,25 @@ def _system_openblas():
 
 _OPENBLAS = _system_openblas()
 
+# Every merged contact solve analyses a new pattern, so CHOLMOD allocates a new factor
+# (200 MB at 61K rows) and frees the last. glibc serves blocks above 32 MB with mmap, so
+# each factor was faulted in page by page and handed back; from the heap it reuses the
+# pages the last one left. Dumped 61K merged systems, analysis + factor + solve: median
+# 1.15-1.29 s -> 0.93-0.99 s. The heap then keeps up to 2 GB it could return to the OS.
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+
+
+def _keep_large_blocks_on_heap() -> None:
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+    except OSError:
+        return  # not glibc: nothing to tune
+    libc.mallopt(M_MMAP_THRESHOLD, 1 << 30)
+    libc.mallopt(M_TRIM_THRESHOLD, 1 << 31)
+
+
+_keep_large_blocks_on_heap()
+
 
 @contextmanager
 def blas_threads(rows: int):
