@@ -1,4 +1,7 @@
-"""Sparse Cholesky through CHOLMOD (scikit-sparse), symbolic analysis reused.
+"""Sparse Cholesky through CHOLMOD, symbolic analysis reused.
+
+CHOLMOD is called through sim/supernodal.py (relaxed supernodes, faster on cloth
+Hessians) where it recognises the library, through scikit-sparse otherwise.
 
 The fill-reducing ordering and supernodal structure depend only on the pattern, so they
 are computed once per pattern; every Newton iteration refactors numerically in place.
@@ -13,6 +16,8 @@ from contextlib import contextmanager
 import numpy as np
 import scipy.sparse as sp
 from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
+
+from . import supernodal
 
 # CHOLMOD's supernodal factorization spends its time in dense BLAS on the fronts. BLAS
 # runs on one thread by default (garment/_threads.py: small systems lose more to hand-offs
@@ -67,45 +72,58 @@ def blas_threads(rows: int):
         _OPENBLAS.openblas_set_num_threads(before)
 
 
+class _ScikitFactor:
+    """scikit-sparse's CHOLMOD factor behind RelaxedFactor's interface: the fallback
+    where sim/supernodal.py does not recognise the CHOLMOD it finds."""
+
+    def __init__(self, A_lower: sp.csc_matrix, ordering: str):
+        self._factor = analyze(A_lower, mode="supernodal", ordering_method=ordering)
+
+    def factorize(self, A_lower: sp.csc_matrix, shift: float) -> bool:
+        try:
+            self._factor.cholesky_inplace(A_lower, beta=shift)
+        except CholmodNotPositiveDefiniteError:
+            return False
+        return True
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._factor(b)
+
+
 class CholeskySolver:
     """Solves H x = b for the lower-triangular CSC matrices of one fixed pattern.
 
     ordering: CHOLMOD's ordering method (its default tries AMD and METIS)."""
 
     def __init__(self, A_lower: sp.csc_matrix, ordering: str = "default"):
-        self._factor = analyze(A_lower, mode="supernodal", ordering_method=ordering)
+        make = supernodal.RelaxedFactor if supernodal.available() else _ScikitFactor
+        self._factor = make(A_lower, ordering)
         self.n_factorizations = 0
 
-    def _refactor(self, A_lower: sp.csc_matrix, shift: float) -> None:
+    def _refactor(self, A_lower: sp.csc_matrix, shift: float) -> bool:
         with blas_threads(A_lower.shape[0]):
-            self._factor.cholesky_inplace(A_lower, beta=shift)
+            ok = self._factor.factorize(A_lower, shift)
         self.n_factorizations += 1
+        return ok
 
     def try_factorize(self, A_lower: sp.csc_matrix) -> bool:
         """Factor A if it is positive definite; False (and no usable factor) if not."""
-        try:
-            self._refactor(A_lower, 0.0)
-        except CholmodNotPositiveDefiniteError:
-            return False
-        return True
+        return self._refactor(A_lower, 0.0)
 
     def factorize(self, A_lower: sp.csc_matrix) -> float:
         """Factor A (+ shift I if A is not positive definite); returns the shift used."""
         shift = 0.0
         scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
-        while True:
-            try:
-                self._refactor(A_lower, shift)
-                return shift
-            except CholmodNotPositiveDefiniteError:
-                # Only reachable without inertia (quasi-static) or with an unprojected
-                # Hessian: regularise like Levenberg-Marquardt.
-                shift = max(1e-10 * scale, 10.0 * shift)
-                if shift > scale:
-                    raise
+        while not self._refactor(A_lower, shift):
+            # Only reachable without inertia (quasi-static) or with an unprojected
+            # Hessian: regularise like Levenberg-Marquardt.
+            shift = max(1e-10 * scale, 10.0 * shift)
+            if shift > scale:
+                raise np.linalg.LinAlgError(f"not positive definite even shifted by {shift:.3g}")
+        return shift
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return self._factor(b)
+        return self._factor.solve(b)
 
 
 def solve_once(A_lower: sp.csc_matrix, b: np.ndarray, allow_shift: bool = True) -> np.ndarray | None:
