@@ -489,6 +489,11 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         if on_panel:
             on_panel(panel, rep, None)
     mapped = [map_seam(s, patches, tol) for s in all_seams if s.panel_a in patches and s.panel_b in patches]
+    if warps:
+        from .pleats import pleat_faces
+
+        faces = {name: tucks for w in warps.values() for name, tucks in pleat_faces(w.fold, all_seams).items()}
+        mapped = [dataclasses.replace(m, after=faces[m.name]) if m.name in faces else m for m in mapped]
     source = panels[0].source if panels else ""
     summary = {name: split_summary(sp_, quality) for name, sp_ in splits.items()}
     return PatchSet(list(patches.values()), mapped, prov, quality, failures, source, summary)

@@ -286,6 +286,31 @@ def _sewn_elsewhere(panel: str, seams: list[PanelSeam], origin, e, near: float) 
     return (rel @ e)[np.abs(rel @ _across(e)) <= near]
 
 
+def pleat_faces(fold: PleatFold, seams: list[PanelSeam]) -> dict[str, tuple[str, ...]]:
+    """The seams that join other panels to the layers of a folded pleat (a waistband
+    onto its face), each with the tucks of that pleat: the simulator lets such a seam
+    pull only once those tucks have nearly closed (sim/seams.py, PLEAT_WAIT), so the
+    other panel comes down onto a pleat already folded rather than into the fold."""
+    near = max(_depth(t) for t in fold.tucks)
+    across = _across(fold.direction)
+    faces: dict[str, tuple[str, ...]] = {}
+    for g0, g1 in fold.groups:
+        group = [t for t in fold.tucks if g0 <= t.roots[0] and t.roots[1] <= g1]
+        tucks = tuple(t.seam for t in group)
+        tol = 0.25 * min(t.roots[1] - t.roots[0] for t in group)  # seams ending at a root stay out
+        for seam in seams:
+            if seam.panel_a == seam.panel_b:
+                continue
+            for name, points in ((seam.panel_a, seam.points_a), (seam.panel_b, seam.points_b)):
+                rel = np.asarray(points, float).reshape(-1, 2) - fold.origin
+                if name != fold.panel or not len(rel):
+                    continue
+                s = rel @ fold.direction
+                if np.any((s > g0 + tol) & (s < g1 - tol) & (np.abs(rel @ across) <= near)):
+                    faces[seam.name] = tuple(dict.fromkeys(faces.get(seam.name, ()) + tucks))
+    return faces
+
+
 def _level_tilt(lines, angles, group, width) -> float:
     """The rotation of a group's cloth that brings the cloth past it back to the side
     line (the turns at the group's ends are rounded too, so solved for, not the chord's

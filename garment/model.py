@@ -175,7 +175,9 @@ class BoundaryInterval:
 class PatchSeam:
     """A seam between patch boundaries: matched parameter samples uv_a[k] ~ uv_b[k]
     ((K, 2) each, in the patches' parameter domains) and the boundary intervals they
-    cover on each patch (consecutive samples on one side, split at corners)."""
+    cover on each patch (consecutive samples on one side, split at corners). `after`:
+    seams (tucks of a folded pleat this seam is sewn onto) that must nearly close before
+    this one pulls (conform/pleats.py, pleat_faces)."""
 
     name: str
     patch_a: str
@@ -184,6 +186,7 @@ class PatchSeam:
     uv_b: np.ndarray
     intervals_a: list[BoundaryInterval]
     intervals_b: list[BoundaryInterval]
+    after: tuple[str, ...] = ()
 
 
 @dataclass

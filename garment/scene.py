@@ -292,7 +292,9 @@ class GarmentSpec:
     """A garment: the patches and seams of a patch file (`garment conform` output), or a
     panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m), graded
     towards `seam_span` (m) at short seams when given (conform/grading.py), its tucks and
-    knife pleats folded into the placement with `fold_pleats` (conform/pleats.py). Seams are held
+    knife pleats folded into the placement with `fold_pleats` (conform/pleats.py); with
+    `pleat_wait`, seams sewn onto a folded pleat's face pull only once its tucks have
+    nearly closed (sim.simulator.Simulator.PLEAT_WAIT). Seams are held
     by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py).
     `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
 
@@ -301,6 +303,7 @@ class GarmentSpec:
     knot_span: float = 0.03
     seam_span: float | None = None
     fold_pleats: bool = False
+    pleat_wait: bool = False
     seam_stiffness: float = 1e6
     material: Material = PRESETS["cotton"]
     placement: PlacementSpec | None = None
@@ -381,8 +384,8 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
 # --------------------------------------------------------------------------- tables
 
 _TOP_KEYS = ("scene", "material", "cloth", "pin", "load", "time", "output", "obstacle", "contact", "garment")
-_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_span_mm", "fold_pleats", "seam_stiffness", "material",
-                 "placement")
+_GARMENT_KEYS = ("name", "source", "knot_span_mm", "seam_span_mm", "fold_pleats", "pleat_wait", "seam_stiffness",
+                 "material", "placement")
 _PLACEMENT_KEYS = ("file", "scale", "up", "translate")
 _MATERIAL_NUMBERS = {  # key -> bounds
     "E_st": {"gt": 0},
@@ -453,7 +456,8 @@ def _read_garment(t: _Table, index: int, base: Path, scene_material: Material) -
         name=t.string("name") or f"garment{index}", source=src, placement=placement,
         material=_read_material(t.table("material", _MATERIAL_KEYS), scene_material),
         **_given(knot_span=span / 1000.0 if span else None, seam_span=seam_span / 1000.0 if seam_span else None,
-                 seam_stiffness=t.number("seam_stiffness", gt=0), fold_pleats=t.read("fold_pleats", _as_bool)),
+                 seam_stiffness=t.number("seam_stiffness", gt=0), fold_pleats=t.read("fold_pleats", _as_bool),
+                 pleat_wait=t.read("pleat_wait", _as_bool)),
     )
 
 

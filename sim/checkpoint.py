@@ -47,11 +47,13 @@ class SimState:
     seam_multipliers: np.ndarray | None = None  # (S, 3) N/m, with seams only
     seam_gaps: np.ndarray | None = None  # (S,) m, at the multipliers' last update
     seam_pairs: np.ndarray | None = None  # (P,) seam vertex pairs: 0 open, 1 merged, 2 apart for good, 3 blocked
+    pleat_faces: np.ndarray | None = None  # (F,) 1 where a seam onto a pleat no longer waits
 
 
 # SimState fields that are None in scenes without contact, bodies or seams: stored only
 # when set.
-_OPTIONAL_ARRAYS = ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_gaps", "seam_pairs")
+_OPTIONAL_ARRAYS = ("obstacle_vertices", "drive_target", "seam_multipliers", "seam_gaps", "seam_pairs",
+                    "pleat_faces")
 _OPTIONAL_NUMBERS = ("kappa", "stiffness_floor", "stiffness_prev_d")
 
 
@@ -72,6 +74,8 @@ def capture(sim) -> SimState:
         s.seam_gaps = sim.seam.last_gaps.copy()
         if sim.seam_contact is not None:
             s.seam_pairs = sim.seam_contact.state.copy()
+        if len(sim.faces_released):
+            s.pleat_faces = sim.faces_released.astype(np.float64)
     return s
 
 
@@ -99,6 +103,8 @@ def restore(sim, s: SimState) -> None:
         sim.seam.multipliers = s.seam_multipliers.copy()
         if s.seam_gaps is not None:
             sim.seam.last_gaps = s.seam_gaps.copy()
+    if s.pleat_faces is not None:
+        sim.faces_released = s.pleat_faces.astype(bool)
     if s.seam_pairs is not None:  # also back to fewer merged pairs (a retried step)
         sim._merge_seams(restore=s.seam_pairs)
 

@@ -26,6 +26,9 @@ class SeamSpec:
     piece_b: str
     uv_b: np.ndarray
     name: str = ""
+    # Seams (indices in the simulator's list) this one waits for: the tucks of a folded
+    # pleat it is sewn onto (garment.model.PatchSeam.after; Simulator.PLEAT_WAIT).
+    after: tuple[int, ...] = ()
 
 
 def _rows(piece, uv, n_cp):

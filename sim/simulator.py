@@ -179,6 +179,8 @@ class Simulator:
             by_name = {p.name: p.material for p in self.pieces}
             max_step = [self.MULTIPLIER_STEP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
             self.seam = SeamEnergy(samples, np.repeat(k, counts), np.repeat(max_step, counts))
+            self._faces = self._pleat_faces()
+            self.faces_released = np.zeros(len(self._faces), bool)  # latched: see _waiting_samples
             self.energies.append(self.seam)
             # Each sample lets go while its nearest matched vertex pair is blocked (_hold_seams).
             rest_vertices = np.concatenate([p.topology.rest for p in self.pieces])
@@ -287,16 +289,64 @@ class Simulator:
     # than this many d_hat apart (SeamContact.update_blocked): a pleat's blocked pairs sit
     # 0.4-1.5 mm apart.
     BLOCK_REACH = 10.0
+    # A seam sewn onto a folded pleat (a waistband onto its face) pulls only once the
+    # pleat's tucks are within PLEAT_WAIT of closed, or from PLEAT_WAIT_END on: pulled
+    # earlier, the other panel comes down into the fold and its layers hold a tuck open
+    # (README, "Folded pleats": the dress to t = 1.2 s, seam78 5.44 -> 0.80 mm; waiting
+    # for 1 mm instead, panel11's last pleat never got there and held its face open).
+    PLEAT_WAIT = 3e-3
+    PLEAT_WAIT_END = 0.6
 
     def _hold_seams(self) -> int:
-        """Let the seam energy go of samples whose nearest matched pair is blocked, and
-        take up the others again. Returns the blocked pairs."""
-        if self.seam is None or self.barrier is None or len(self.seam_contact.pairs) == 0:
+        """Let the seam energy go of samples whose nearest matched pair is blocked, and of
+        seams still waiting for their pleat's tucks; take up the others again. Returns
+        the blocked pairs."""
+        if self.seam is None:
             return 0
-        blocked = self.seam_contact.update_blocked(self.C, self.barrier.contact, self.BLOCK_REACH * self.barrier.dhat)
-        if self.seam.hold(~np.append(blocked, False)[self._sample_pair]):
+        active, blocked = np.ones(self.seam.active.size, bool), 0
+        if self.barrier is not None and len(self.seam_contact.pairs):
+            reach = self.BLOCK_REACH * self.barrier.dhat
+            pairs = self.seam_contact.update_blocked(self.C, self.barrier.contact, reach)
+            active &= ~np.append(pairs, False)[self._sample_pair]
+            blocked = int(pairs.sum())
+        active &= ~self._waiting_samples()
+        if self.seam.hold(active):
             self.potential.refresh_constant()
-        return int(blocked.sum())
+        return blocked
+
+    def _pleat_faces(self) -> list[tuple[np.ndarray, list[slice]]]:
+        """Per seam that waits for a pleat: its samples on the pleat (within the tucks'
+        span of parameters on that piece; a seam may run on past the pleat) and the
+        tucks' sample ranges."""
+        start = np.cumsum([0] + [len(s.uv_a) for s in self.seams])
+        faces = []
+        for k, s in enumerate(self.seams):
+            if not s.after:
+                continue
+            piece = self.seams[s.after[0]].piece_a
+            tuck_uv = np.concatenate([np.r_[self.seams[j].uv_a, self.seams[j].uv_b] for j in s.after])
+            lo, hi = tuck_uv.min(axis=0) - 1e-6, tuck_uv.max(axis=0) + 1e-6
+            uv = np.asarray(s.uv_a if s.piece_a == piece else s.uv_b, float)
+            on = np.all((uv >= lo) & (uv <= hi), axis=1)
+            faces.append((start[k] + np.flatnonzero(on), [slice(start[j], start[j + 1]) for j in s.after]))
+        return faces
+
+    def _waiting_samples(self) -> np.ndarray:
+        """(S,) bool: samples on a pleat whose tucks have not yet closed to PLEAT_WAIT.
+        Once they have, the seam pulls for good (faces_released, kept in checkpoints):
+        without the face's pull a small pleat can spring back open and the wait restart."""
+        waiting = np.zeros(self.seam.active.size, bool)
+        if self.faces_released.all():
+            return waiting
+        gaps = self.seam.samples.gaps(self.C)
+        for k, (samples, tucks) in enumerate(self._faces):
+            if self.faces_released[k]:
+                continue
+            if self.t >= self.PLEAT_WAIT_END or all(gaps[t].max(initial=0.0) <= self.PLEAT_WAIT for t in tucks):
+                self.faces_released[k] = True
+            else:
+                waiting[samples] = True
+        return waiting
 
     def _set_piece_rows(self, mesh: ContactMesh) -> None:
         """Exported meshes follow the contact mesh (SeamContact.rows)."""
@@ -337,7 +387,9 @@ class Simulator:
                 patches.append(Patch(name[p.name], p.rest, p.world))
                 materials.append(g.material)
                 directions.append(np.array([0.0, 0.0, 1.0]))
-            seams += [SeamSpec(name[s.patch_a], s.uv_a, name[s.patch_b], s.uv_b, s.name) for s in ps.seams]
+            index = {s.name: len(seams) + k for k, s in enumerate(ps.seams)} if g.pleat_wait else {}
+            seams += [SeamSpec(name[s.patch_a], s.uv_a, name[s.patch_b], s.uv_b, s.name,
+                               tuple(index[a] for a in s.after if a in index)) for s in ps.seams]
             stiffness += [g.seam_stiffness] * len(ps.seams)
         tm = scene.time
         opts = NewtonOptions.for_time(tm, newton)

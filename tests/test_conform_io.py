@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -169,11 +170,14 @@ def test_conform_command_partial_failure(tmp_path, capsys, two_panels_and_a_hole
     prov = ps.provenance["front"]
     assert prov["corner_vertex_ids"] == [0, 60, 65, 5]
     assert prov["sides"]["u1"]["boundary_vertex_ids"] == list(range(60, 66))
-    # The file round-trips.
+    # The file round-trips, a seam's wait for a pleat's tucks included.
+    assert seam.after == ()
+    ps.seams[0] = dataclasses.replace(seam, after=("tuck1", "tuck2"))
     save_patchset(tmp_path / "again.json", ps)
     again = load_patchset(tmp_path / "again.json")
     np.testing.assert_array_equal(again.patch("back").rest, ps.patch("back").rest)
     assert again.seams[0].intervals_b[0].side == "u0"
+    assert again.seams[0].after == ("tuck1", "tuck2")
 
 
 def test_conform_command_table_corners_and_preview(tmp_path, capsys, two_panels_and_a_hole):

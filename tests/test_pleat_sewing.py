@@ -60,15 +60,19 @@ def _pleated(path: Path, face: str = "last") -> Path:
     return path
 
 
-@pytest.mark.parametrize("face", ["last", pytest.param("first", marks=pytest.mark.slow)])
-def test_a_folded_knife_pleat_sews_shut_with_its_layers_in_order(tmp_path, face):
+def _scene(tmp_path, face, **garment):
     doc = {
         "garment": [{"name": "g", "source": str(_pleated(tmp_path / "pleat.obj", face)), "knot_span_mm": 40,
-                     "seam_span_mm": 8, "fold_pleats": True, "seam_stiffness": 1e6}],
+                     "seam_span_mm": 8, "fold_pleats": True, "seam_stiffness": 1e6, **garment}],
         "contact": {"dhat": 1e-3, "kappa": "adaptive", "mu": 0.0},
         "time": {"dt": 0.01, "frames": 30},
     }
-    sim = Simulator.from_scene(parse_scene(doc, tmp_path / "pleat.toml"))
+    return Simulator.from_scene(parse_scene(doc, tmp_path / "pleat.toml"))
+
+
+@pytest.mark.parametrize("face", ["last", pytest.param("first", marks=pytest.mark.slow)])
+def test_a_folded_knife_pleat_sews_shut_with_its_layers_in_order(tmp_path, face):
+    sim = _scene(tmp_path, face)
     assert [p.name for p in sim.pieces] == ["g.skirt", "g.band"]
     for step in range(30):
         sim.step()
@@ -82,3 +86,35 @@ def test_a_folded_knife_pleat_sews_shut_with_its_layers_in_order(tmp_path, face)
     gaps = sim.seam_gaps()
     assert max(gaps.values()) < 2e-3, gaps
     assert max(gaps["seam2"], gaps["seam3"]) < 1.2e-3, gaps  # the band
+
+
+def test_the_band_waits_on_the_pleat_until_its_tucks_close(tmp_path):
+    """`pleat_wait`: the band's samples on the pleat's face (seam3's, not the rest of
+    it) carry no force until both tucks are within Simulator.PLEAT_WAIT; then they pull
+    for good, and a checkpoint keeps that."""
+    from sim.checkpoint import capture, restore
+
+    assert all(not s.after for s in _scene(tmp_path, "last").seams)  # off by default
+    sim = _scene(tmp_path, "last", pleat_wait=True)
+    assert [tuple(sorted(s.after)) for s in sim.seams] == [(), (), (), (0, 1)]
+    ((on_pleat, tucks),) = sim._faces
+    start = sum(len(s.uv_a) for s in sim.seams[:3])
+    assert np.all((on_pleat >= start) & (on_pleat < start + len(sim.seams[3].uv_a)))
+    assert 2 <= len(on_pleat) <= len(sim.seams[3].uv_a) // 2  # the face, 2 of the band's 26 cm
+    before = sim.seam.samples.gaps(sim.C)
+    assert max(before[t].max() for t in tucks) > sim.PLEAT_WAIT
+    sim.step()
+    assert not sim.seam.active[on_pleat].any() and sim.seam.active[start:on_pleat[0]].all()
+    state = capture(sim)
+    for _ in range(10):
+        if sim.faces_released.all():
+            break
+        sim.step()
+    assert sim.faces_released.all() and sim.seam.active[on_pleat].all()
+    gaps = sim.seam.samples.gaps(sim.C)
+    assert max(gaps[t].max() for t in tucks) <= sim.PLEAT_WAIT * 1.5
+    released = capture(sim)
+    restore(sim, state)
+    assert not sim.faces_released.any()
+    restore(sim, released)
+    assert sim.faces_released.all()

@@ -125,6 +125,10 @@ def test_dress_knife_folds_its_skirt_pleats_and_leaves_the_bodice_pleats_flat():
     assert warps["panel4"].fold.angles[0] * warps["panel11"].fold.angles[0] * \
         (warps["panel4"].along @ warps["panel11"].along) < 0
     assert any("under 12.0 mm" in n for n in notes["panel6"])
+    # The waistband's seam onto each pleat's face waits for that pleat's two tucks.
+    faces = {name: sorted(tucks) for w in warps.values() for name, tucks in pleats.pleat_faces(w.fold, seams).items()}
+    assert faces == {f"seam{60 + k}": [f"seam{86 + 2 * k}", f"seam{87 + 2 * k}"] for k in range(4)} | \
+        {f"seam{66 + k}": [f"seam{74 + 2 * k}", f"seam{75 + 2 * k}"] for k in range(4)}
 
 
 def test_a_pleated_panel_conforms_to_a_folded_net_with_little_strain():
@@ -142,13 +146,14 @@ def test_a_pleated_panel_conforms_to_a_folded_net_with_little_strain():
     np.testing.assert_array_equal(folded.patches[1].world, flat.patches[1].world)  # the band stays put
 
 
-def test_scene_garments_take_fold_pleats_as_a_boolean():
+@pytest.mark.parametrize("key", ["fold_pleats", "pleat_wait"])
+def test_scene_garments_take_pleat_switches_as_booleans(key):
     source = str(ROOT / "assets" / "garments" / "dress_knife.obj")
-    scene = parse_scene({"garment": [{"source": source, "fold_pleats": True}]}, "dress.toml")
-    assert scene.garments[0].fold_pleats
-    assert not parse_scene({"garment": [{"source": source}]}, "dress.toml").garments[0].fold_pleats
-    with pytest.raises(InputError, match="dress.toml.*fold_pleats.*true or false"):
-        parse_scene({"garment": [{"source": source, "fold_pleats": "yes"}]}, "dress.toml")
+    scene = parse_scene({"garment": [{"source": source, key: True}]}, "dress.toml")
+    assert getattr(scene.garments[0], key)
+    assert not getattr(parse_scene({"garment": [{"source": source}]}, "dress.toml").garments[0], key)
+    with pytest.raises(InputError, match=f"dress.toml.*{key}.*true or false"):
+        parse_scene({"garment": [{"source": source, key: "yes"}]}, "dress.toml")
 
 
 def test_the_bundled_dress_scene_folds_its_pleats():

@@ -28,7 +28,8 @@
         {"name": "...",
          "a": {"patch": "panel0", "uv": K x 2 parameters,
                "intervals": [{"side": "v0", "t0": 0.0, "t1": 12.0}, ...]},
-         "b": {...}}    # a.uv[k] is sewn to b.uv[k]
+         "b": {...},    # a.uv[k] is sewn to b.uv[k]
+         "after": ["seam", ...]}  # optional: tucks of a folded pleat that close first
       ],
       "failures": {"panel or patch name": "why it was not converted"},
       "splits": {"panel name": {      # panels cut into several patches (conform/split.py)
@@ -105,6 +106,7 @@ def to_dict(ps: PatchSet) -> dict:
                   "intervals": [vars(iv) for iv in s.intervals_a]},
             "b": {"patch": s.patch_b, "uv": s.uv_b.tolist(),
                   "intervals": [vars(iv) for iv in s.intervals_b]},
+            **({"after": list(s.after)} if s.after else {}),
         })
     return _clean({"format": FORMAT, "version": VERSION, "units": "m", "source": ps.source,
                    "patches": patches, "seams": seams, "failures": ps.failures, "splits": ps.splits})
@@ -164,7 +166,7 @@ def load_patchset(path) -> PatchSet:
             if ends[0][1].shape != ends[1][1].shape:
                 raise ValueError("a.uv and b.uv must have the same number of samples")
             seams.append(PatchSeam(str(d["name"]), ends[0][0], ends[1][0], ends[0][1], ends[1][1],
-                                   ends[0][2], ends[1][2]))
+                                   ends[0][2], ends[1][2], tuple(str(a) for a in d.get("after", ()))))
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"{path}: seams[{k}]: {e}") from None
     return PatchSet(patches, seams, prov, quality, dict(doc.get("failures", {})), str(doc.get("source", "")),
