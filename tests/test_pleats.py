@@ -159,6 +159,7 @@ def test_scene_garments_take_pleat_switches_as_booleans(key):
 def test_the_bundled_dress_scene_folds_its_pleats():
     scene = load_scene(ROOT / "assets" / "scenes" / "dress_rumba.toml")
     assert [g.fold_pleats for g in scene.garments] == [True]
+    assert [g.pleat_wait for g in scene.garments] == [True]
 
 
 def test_garment_conform_folds_pleats_on_request(tmp_path):
