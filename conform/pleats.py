@@ -278,12 +278,22 @@ def _free_root(t: Tuck, group: list[Tuck], tol: float):
 def _sewn_elsewhere(panel: str, seams: list[PanelSeam], origin, e, near: float) -> np.ndarray:
     """Side coordinates of this panel's points sewn to other panels within `near` (m) of
     the side line."""
-    pts = [np.asarray(p, float) for s in seams if s.panel_a != s.panel_b
-           for name, p in ((s.panel_a, s.points_a), (s.panel_b, s.points_b)) if name == panel and len(p)]
-    if not pts:
-        return np.zeros(0)
-    rel = np.concatenate(pts) - origin
-    return (rel @ e)[np.abs(rel @ _across(e)) <= near]
+    by_seam = _sewn_by_seam(panel, seams, origin, e, near)
+    return np.concatenate(list(by_seam.values())) if by_seam else np.zeros(0)
+
+
+def _sewn_by_seam(panel: str, seams: list[PanelSeam], origin, e, near: float) -> dict[str, np.ndarray]:
+    """_sewn_elsewhere's points by the seam that sews them (seams with none left out)."""
+    out: dict[str, list[np.ndarray]] = {}
+    for s in seams:
+        if s.panel_a == s.panel_b:
+            continue
+        for name, p in ((s.panel_a, s.points_a), (s.panel_b, s.points_b)):
+            if name == panel and len(p):
+                rel = np.asarray(p, float).reshape(-1, 2) - origin
+                out.setdefault(s.name, []).append((rel @ e)[np.abs(rel @ _across(e)) <= near])
+    side = {name: np.concatenate(parts) for name, parts in out.items()}
+    return {name: x for name, x in side.items() if x.size}
 
 
 def pleat_faces(fold: PleatFold, seams: list[PanelSeam]) -> dict[str, tuple[str, ...]]:
@@ -291,23 +301,15 @@ def pleat_faces(fold: PleatFold, seams: list[PanelSeam]) -> dict[str, tuple[str,
     onto its face), each with the tucks of that pleat: the simulator lets such a seam
     pull only once those tucks have nearly closed (sim/seams.py, PLEAT_WAIT), so the
     other panel comes down onto a pleat already folded rather than into the fold."""
-    near = max(_depth(t) for t in fold.tucks)
-    across = _across(fold.direction)
+    sewn = _sewn_by_seam(fold.panel, seams, fold.origin, fold.direction, max(_depth(t) for t in fold.tucks))
     faces: dict[str, tuple[str, ...]] = {}
     for g0, g1 in fold.groups:
         group = [t for t in fold.tucks if g0 <= t.roots[0] and t.roots[1] <= g1]
         tucks = tuple(t.seam for t in group)
         tol = 0.25 * min(t.roots[1] - t.roots[0] for t in group)  # seams ending at a root stay out
-        for seam in seams:
-            if seam.panel_a == seam.panel_b:
-                continue
-            for name, points in ((seam.panel_a, seam.points_a), (seam.panel_b, seam.points_b)):
-                rel = np.asarray(points, float).reshape(-1, 2) - fold.origin
-                if name != fold.panel or not len(rel):
-                    continue
-                s = rel @ fold.direction
-                if np.any((s > g0 + tol) & (s < g1 - tol) & (np.abs(rel @ across) <= near)):
-                    faces[seam.name] = tuple(dict.fromkeys(faces.get(seam.name, ()) + tucks))
+        for name, x in sewn.items():
+            if np.any((x > g0 + tol) & (x < g1 - tol)):
+                faces[name] = tuple(dict.fromkeys(faces.get(name, ()) + tucks))
     return faces
 
 
