@@ -216,7 +216,7 @@ def plan_fold(panel: Panel, seams: list[PanelSeam], span: float) -> tuple[PleatF
             continue
         g0 = min(t.roots[0] for t in group)
         g1 = max(t.roots[1] for t in group)
-        tol = 0.25 * min(t.roots[1] - t.roots[0] for t in group)
+        tol = _root_tolerance(group)
         glines = sorted({t.tip for t in group} | {_free_root(t, group, tol) for t in group} - {None})
         glines = np.array(glines)
         if glines.size % 2:
@@ -250,6 +250,12 @@ def plan_fold(panel: Panel, seams: list[PanelSeam], span: float) -> tuple[PleatF
 def _depth(t: Tuck) -> float:
     """How deep a tuck folds: half the distance between its roots."""
     return 0.5 * (t.roots[1] - t.roots[0])
+
+
+def _root_tolerance(group: list[Tuck]) -> float:
+    """How near (m, along the side) a point counts as at a group's root or tip: a quarter
+    of its narrowest tuck."""
+    return 0.25 * min(t.roots[1] - t.roots[0] for t in group)
 
 
 def _overlapping(tucks: list[Tuck]) -> list[list[Tuck]]:
@@ -299,14 +305,14 @@ def _sewn_by_seam(panel: str, seams: list[PanelSeam], origin, e, near: float) ->
 def pleat_faces(fold: PleatFold, seams: list[PanelSeam]) -> dict[str, tuple[str, ...]]:
     """The seams that join other panels to the layers of a folded pleat (a waistband
     onto its face), each with the tucks of that pleat: the simulator lets such a seam
-    pull only once those tucks have nearly closed (sim/seams.py, PLEAT_WAIT), so the
+    pull only once those tucks have nearly closed (sim.simulator.Simulator.PLEAT_WAIT), so the
     other panel comes down onto a pleat already folded rather than into the fold."""
     sewn = _sewn_by_seam(fold.panel, seams, fold.origin, fold.direction, max(_depth(t) for t in fold.tucks))
     faces: dict[str, tuple[str, ...]] = {}
     for g0, g1 in fold.groups:
         group = [t for t in fold.tucks if g0 <= t.roots[0] and t.roots[1] <= g1]
         tucks = tuple(t.seam for t in group)
-        tol = 0.25 * min(t.roots[1] - t.roots[0] for t in group)  # seams ending at a root stay out
+        tol = _root_tolerance(group)  # seams ending at a root stay out
         for name, x in sewn.items():
             if np.any((x > g0 + tol) & (x < g1 - tol)):
                 faces[name] = tuple(dict.fromkeys(faces.get(name, ()) + tucks))

@@ -176,6 +176,7 @@ class Simulator:
             # One stiffness per seam (a scalar: all alike), spread over its samples.
             k = np.broadcast_to(np.asarray(seam_stiffness, float), (len(self.seams),))
             counts = [len(s.uv_a) for s in self.seams]
+            self._seam_start = np.cumsum([0] + counts)  # seam k's samples: _seam_start[k]:_seam_start[k + 1]
             by_name = {p.name: p.material for p in self.pieces}
             max_step = [self.MULTIPLIER_STEP * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in self.seams]
             self.seam = SeamEnergy(samples, np.repeat(k, counts), np.repeat(max_step, counts))
@@ -318,7 +319,7 @@ class Simulator:
         """Per seam that waits for a pleat: its samples on the pleat (within the tucks'
         span of parameters on that piece; a seam may run on past the pleat) and the
         tucks' sample ranges."""
-        start = np.cumsum([0] + [len(s.uv_a) for s in self.seams])
+        start = self._seam_start
         faces = []
         for k, s in enumerate(self.seams):
             if not s.after:
@@ -423,12 +424,10 @@ class Simulator:
 
     def seam_gaps(self) -> dict[str, float]:
         """Largest gap (m) of each seam, by name (seams without one: their index)."""
-        gaps = self.seam.samples.gaps(self.C) if self.seam is not None else np.zeros(0)
-        out, start = {}, 0
-        for k, s in enumerate(self.seams):
-            out[s.name or str(k)] = float(gaps[start:start + len(s.uv_a)].max(initial=0.0))
-            start += len(s.uv_a)
-        return out
+        if self.seam is None:
+            return {}
+        gaps, start = self.seam.samples.gaps(self.C), self._seam_start
+        return {s.name or str(k): float(gaps[start[k]:start[k + 1]].max(initial=0.0)) for k, s in enumerate(self.seams)}
 
     def seam_pairs_held_open(self) -> int:
         """Matched seam vertex pairs that could not be sewn (SeamContact.held_open)."""
