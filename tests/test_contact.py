@@ -102,7 +102,7 @@ def test_barrier_derivatives_on_control_points():
             np.testing.assert_allclose(H[:, 3 * i + d], col, rtol=1e-4, atol=1e-5 * scale)
 
 
-def test_barrier_keeps_the_collision_sets_of_its_last_two_points():
+def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread):
     """Back at the point before a rejected trial, the barrier reuses that point's
     collision set; a third point rebuilds into the older one's."""
     sim = Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))

@@ -9,7 +9,6 @@ import sys
 import time
 from pathlib import Path
 
-import ipctk
 import numpy as np
 import pytest
 
@@ -51,15 +50,6 @@ dt = 0.01
 frames = 10
 steps_per_frame = 2
 """
-
-
-@pytest.fixture
-def one_ipc_thread():
-    """ipctk's TBB reductions vary between runs (~1e-13); one thread makes them repeat."""
-    before = ipctk.get_num_threads()
-    ipctk.set_num_threads(1)
-    yield
-    ipctk.set_num_threads(before)
 
 
 def test_resume_repeats_the_uninterrupted_run(tmp_path, one_ipc_thread):
