@@ -432,11 +432,14 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
 
         raise InputError(f"corners: no panel named {', '.join(sorted(unknown))}")
     patches, quality, prov, failures, tol, splits = {}, {}, {}, {}, {}, {}
-    warps, flat = {}, {}
+    warps, flat, spans = {}, {}, {}
     if options.fold_pleats:
-        from .pleats import fold_panels
+        from .pleats import fold_panels, fold_span
 
-        warps, flat = fold_panels(panels, seams, options.finest_span)
+        if options.seam_span is not None:  # graded nets: fine enough at the tucks to fold
+            spans = {p.name: fold_span(p.name, seams, options.finest_span) for p in panels}
+            spans = {name: h for name, h in spans.items() if h < options.finest_span}
+        warps, flat = fold_panels(panels, seams, options.finest_span, spans)
 
     # 1. Plan: outlines, splits, and the seams moved onto the pieces. Corner hints of
     # panels that stay whole come from the seams as given.
@@ -466,9 +469,10 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         if split is not None:
             hints, dart_points = seam_hints(panel.name, all_seams)
             avoid = np.concatenate([np.asarray(avoid).reshape(-1, 2), dart_points])
-        opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners))
-        short = short_seams(panel.name, all_seams, SHORT * options.knot_span)
         origin = parent.name if parent is not None else panel.name  # whose placement it takes
+        opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners),
+                                   seam_span=spans.get(origin, options.seam_span))
+        short = short_seams(panel.name, all_seams, SHORT * options.knot_span)
         try:
             patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short,
                                        warp=warps.get(origin))
@@ -482,6 +486,8 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
             prov[panel.name].update(piece_provenance(split, panel.name))
         if origin in warps:
             rep["pleat_folds"] = int(warps[origin].fold.lines.size)
+        if origin in spans:
+            rep["pleat_span_mm"] = round(1e3 * spans[origin], 3)
         if flat.get(origin):
             rep["pleats_left_flat"] = flat[origin]
         patches[panel.name], quality[panel.name] = patch, rep

@@ -35,13 +35,20 @@ from .lift import affine_map
 # How far each fold line turns the placement (a quarter of the way would do to set it).
 FOLD_ANGLE = np.radians(60.0)
 # Pleats shallower than this many of the finest knot spans are left flat: the net cannot
-# fold them (dress_knife's bodice pleats, 7.5 mm deep at 8 mm spans).
+# fold them (dress_knife's bodice pleats, 6.2-9.6 mm deep, at 8 mm spans).
 PLEAT_DEPTH = 1.5
+# A panel whose pleats are too shallow to fold at the seam span is graded finer at its
+# tucks (fold_spans), down to the seam span over this: at 8 mm the bodice pleats stayed
+# flat, their layers caught between the tucks' sides held seam53/54 1.1-1.4 mm open,
+# and at 5 mm, folded, they closed (README, "Folded pleats").
+PLEAT_REFINE = 2.0
 # Each fold turns over this many knot spans of cloth: sharper folds the net cannot follow
 # without straining the placement.
 TURN_WIDTH = 2.0
-# A tuck's stretches must run within this angle of the line between them.
-STRAIGHT = np.radians(20.0)
+# A tuck's stretches must run within this angle of the line between them: the bodices'
+# waists bend, so at 20 degrees their tucks were read in pieces (lone tucks tilted 62
+# degrees, seam20 pulled 212 mm apart instead of 168).
+STRAIGHT = np.radians(45.0)
 
 
 @dataclass
@@ -353,14 +360,27 @@ class PleatWarp:
         return (x - s - self.shift)[:, None] * self.along + h[:, None] * self.normal
 
 
-def fold_panels(panels: list[Panel], seams: list[PanelSeam], span: float) -> tuple[dict, dict]:
+def fold_span(panel: str, seams: list[PanelSeam], span: float) -> float:
+    """The knot span (m) at which a panel's net folds all its pleats: `span`, or finer
+    where its shallowest pleat needs it, but not below span / PLEAT_REFINE."""
+    found = find_tucks(panel, seams)
+    if found is None:
+        return span
+    shallowest = min(_depth(t) for t in found[2])
+    fine = np.floor(1e4 * shallowest / PLEAT_DEPTH) / 1e4  # whole 0.1 mm, so it passes plan_fold
+    return float(np.clip(fine, span / PLEAT_REFINE, span))
+
+
+def fold_panels(panels: list[Panel], seams: list[PanelSeam], span: float,
+                spans: dict | None = None) -> tuple[dict, dict]:
     """The warps of the panels whose tucks fold (by name) for nets of knot span `span`
-    (m), and notes on the tucks left flat."""
+    (m; spans: panel name -> its own, from fold_span), and notes on the tucks left flat."""
+    spans = spans or {}
     worlds = {p.name: p.positions() for p in panels}
     centre = np.concatenate(list(worlds.values())).mean(axis=0)
     warps, notes = {}, {}
     for panel in panels:
-        fold, why = plan_fold(panel, seams, span)
+        fold, why = plan_fold(panel, seams, spans.get(panel.name, span))
         if why:
             notes[panel.name] = why
         if fold is None:

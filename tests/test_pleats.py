@@ -108,6 +108,35 @@ def test_pleats_shallower_than_the_net_can_fold_stay_flat_and_say_why():
     assert fold is None and len(notes) == 2 and all("under 30.0 mm" in n for n in notes)
 
 
+def test_a_panel_whose_pleats_are_too_shallow_for_the_seam_span_is_given_a_finer_one():
+    panel, seams = Panel("p", "test", RECT), _knife()  # both tucks 20 mm deep
+    assert pleats.fold_span("p", seams, 0.010) == 0.010  # folds at the seam span already
+    span = pleats.fold_span("p", seams, 0.020)
+    assert span == pytest.approx(0.0133)  # 20 mm / PLEAT_DEPTH, rounded down to 0.1 mm
+    assert pleats.plan_fold(panel, seams, 0.020)[0] is None
+    fold, notes = pleats.plan_fold(panel, seams, span)
+    assert notes == [] and fold.lines.size == 2
+    # Not finer than the seam span / PLEAT_REFINE: these pleats then stay flat.
+    assert pleats.fold_span("p", seams, 0.030) == pytest.approx(0.015)
+    assert pleats.plan_fold(panel, seams, 0.015)[0] is None
+    assert pleats.fold_span("band", seams, 0.020) == 0.020  # no tucks
+
+
+def test_dress_knife_bodice_pleats_fold_at_their_own_span_not_at_the_seam_span():
+    panels, seams = read_panels(ROOT / "assets" / "garments" / "dress_knife.obj")
+    spans = {p.name: pleats.fold_span(p.name, seams, 0.008) for p in panels}
+    assert {n: h for n, h in spans.items() if h < 0.008} == pytest.approx({"panel6": 0.0048, "panel13": 0.0041})
+    warps, notes = pleats.fold_panels(panels, seams, 0.008, spans)
+    assert sorted(warps) == ["panel11", "panel13", "panel4", "panel6"] and notes == {}
+    for name in ("panel6", "panel13"):
+        fold = warps[name].fold
+        assert fold.lines.size == 8 and len(fold.tucks) == 8
+        assert fold.width == pytest.approx(pleats.TURN_WIDTH * spans[name])
+        pairs = np.concatenate([t.pairs for t in fold.tucks])
+        x = fold.fully_folded(pairs.ravel()).reshape(-1, 2)
+        assert np.abs(x[:, 0] - x[:, 1]).max() < 3e-3  # the bent waist read as one line
+
+
 def test_dress_knife_folds_its_skirt_pleats_and_leaves_the_bodice_pleats_flat():
     panels, seams = read_panels(ROOT / "assets" / "garments" / "dress_knife.obj")
     warps, notes = pleats.fold_panels(panels, seams, 0.008)
@@ -139,6 +168,7 @@ def test_a_pleated_panel_conforms_to_a_folded_net_with_little_strain():
     folded = conform_all([panel, band], _knife((0.14, 0.20)), ConformOptions(knot_span=0.04, seam_span=0.008,
                                                                            fold_pleats=True))
     assert "pleat_folds" not in flat.quality["p"] and folded.quality["p"]["pleat_folds"] == 2
+    assert "pleat_span_mm" not in folded.quality["p"]  # 20 mm deep pleats fold at 8 mm
     assert np.abs(flat.patches[0].world[..., 2]).max() < 1e-12
     W = folded.patches[0].world
     assert np.abs(W[..., 2]).max() > 3e-3  # lifted off the plane at the pleat
