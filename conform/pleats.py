@@ -38,10 +38,11 @@ FOLD_ANGLE = np.radians(60.0)
 # fold them (dress_knife's bodice pleats, 6.2-9.6 mm deep, at 8 mm spans).
 PLEAT_DEPTH = 1.5
 # A panel whose pleats are too shallow to fold at the seam span is graded finer at its
-# tucks (fold_spans), down to the seam span over this: at 8 mm the bodice pleats stayed
-# flat, their layers caught between the tucks' sides held seam53/54 1.1-1.4 mm open,
-# and at 5 mm, folded, they closed (README, "Folded pleats").
-PLEAT_REFINE = 2.0
+# tucks (fold_span), down to the seam span over this. dress_knife's bodices at 8 mm: their
+# pleats stay flat and their layers hold seam53/54 1.1-1.4 mm open; at 5 mm (6 of each
+# bodice's 8 tucks folded) every seam closed; at 4.8 and 4.1 mm (all folded) the dart
+# seam43 next to panel13's 6.2 mm pleat stayed 10-14 mm open (README, "Folded pleats").
+PLEAT_REFINE = 1.6
 # Each fold turns over this many knot spans of cloth: sharper folds the net cannot follow
 # without straining the placement.
 TURN_WIDTH = 2.0

@@ -117,20 +117,23 @@ def test_a_panel_whose_pleats_are_too_shallow_for_the_seam_span_is_given_a_finer
     fold, notes = pleats.plan_fold(panel, seams, span)
     assert notes == [] and fold.lines.size == 2
     # Not finer than the seam span / PLEAT_REFINE: these pleats then stay flat.
-    assert pleats.fold_span("p", seams, 0.030) == pytest.approx(0.015)
-    assert pleats.plan_fold(panel, seams, 0.015)[0] is None
+    assert pleats.fold_span("p", seams, 0.032) == pytest.approx(0.020)
+    assert pleats.plan_fold(panel, seams, 0.020)[0] is None
     assert pleats.fold_span("band", seams, 0.020) == 0.020  # no tucks
 
 
 def test_dress_knife_bodice_pleats_fold_at_their_own_span_not_at_the_seam_span():
     panels, seams = read_panels(ROOT / "assets" / "garments" / "dress_knife.obj")
     spans = {p.name: pleats.fold_span(p.name, seams, 0.008) for p in panels}
-    assert {n: h for n, h in spans.items() if h < 0.008} == pytest.approx({"panel6": 0.0048, "panel13": 0.0041})
+    # Their shallowest pleats (7.3 and 6.2 mm) would ask for 4.8 and 4.1 mm: held at 5 mm.
+    assert {n: h for n, h in spans.items() if h < 0.008} == pytest.approx({"panel6": 0.005, "panel13": 0.005})
     warps, notes = pleats.fold_panels(panels, seams, 0.008, spans)
-    assert sorted(warps) == ["panel11", "panel13", "panel4", "panel6"] and notes == {}
+    assert sorted(warps) == ["panel11", "panel13", "panel4", "panel6"]
+    flat = {name: sorted(n.split(":")[0] for n in why) for name, why in notes.items()}
+    assert flat == {"panel6": ["seam48", "seam49"], "panel13": ["seam52", "seam53"]}
     for name in ("panel6", "panel13"):
         fold = warps[name].fold
-        assert fold.lines.size == 8 and len(fold.tucks) == 8
+        assert fold.lines.size == 6 and len(fold.tucks) == 6
         assert fold.width == pytest.approx(pleats.TURN_WIDTH * spans[name])
         pairs = np.concatenate([t.pairs for t in fold.tucks])
         x = fold.fully_folded(pairs.ravel()).reshape(-1, 2)
