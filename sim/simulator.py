@@ -183,7 +183,7 @@ class Simulator:
             self._faces = self._pleat_faces()
             self.faces_released = np.zeros(len(self._faces), bool)  # latched: see _waiting_samples
             self.energies.append(self.seam)
-            # Each sample lets go while its nearest matched vertex pair is blocked (_hold_seams).
+            # Each sample pulls weakly while its nearest matched vertex pair is blocked (_hold_seams).
             rest_vertices = np.concatenate([p.topology.rest for p in self.pieces])
             self._sample_pair = nearest_pairs(
                 samples.Na @ self._rest_points(), np.repeat(np.arange(len(self.seams)), counts),
@@ -299,19 +299,19 @@ class Simulator:
     PLEAT_WAIT_END = 0.6
 
     def _hold_seams(self) -> int:
-        """Let the seam energy go of samples whose nearest matched pair is blocked, and of
-        seams still waiting for their pleat's tucks; take up the others again. Returns
-        the blocked pairs."""
+        """Pull weakly (SeamEnergy.HELD) the samples whose nearest matched pair is
+        blocked, not at all those of seams still waiting for their pleat's tucks, fully
+        the others. Returns the blocked pairs."""
         if self.seam is None:
             return 0
-        active, blocked = np.ones(self.seam.active.size, bool), 0
+        held, blocked = np.zeros(self.seam.active.size, bool), 0
         if self.barrier is not None and len(self.seam_contact.pairs):
             reach = self.BLOCK_REACH * self.barrier.dhat
             pairs = self.seam_contact.update_blocked(self.C, self.barrier.contact, reach)
-            active &= ~np.append(pairs, False)[self._sample_pair]
+            held = np.append(pairs, False)[self._sample_pair]
             blocked = int(pairs.sum())
-        active &= ~self._waiting_samples()
-        if self.seam.hold(active):
+        waiting = self._waiting_samples()
+        if self.seam.hold(~held & ~waiting, held & ~waiting):
             self.potential.refresh_constant()
         return blocked
 

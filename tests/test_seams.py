@@ -202,7 +202,7 @@ def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
                      contact=ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam], seam_stiffness=1e6)
 
 
-def test_a_seam_blocked_by_a_layer_lets_go_there_and_takes_up_again_once_it_is_gone():
+def test_a_seam_blocked_by_a_layer_pulls_weakly_there_and_fully_again_once_it_is_gone():
     sim = _seam_over_a_layer()
     W, F, _ = stacked_cloth(sim.pieces)
     y_pair = (sim.seam_contact.W_own @ sim.C0)[sim.seam_contact.pairs[:, 0], 1]
@@ -222,9 +222,13 @@ def test_a_seam_blocked_by_a_layer_lets_go_there_and_takes_up_again_once_it_is_g
     assert st.extra["seam_pairs_blocked"] == np.count_nonzero(state == 3) >= np.count_nonzero(over) > 0
     assert (state[over] == 3).all() and (state[clear] == 1).all()
     assert not sim.seam.active[y_sample < -0.02].any() and sim.seam.active[y_sample > 0.02].all()
+    assert sim.seam.held[y_sample < -0.02].all() and not sim.seam.held[y_sample > 0.02].any()
     np.testing.assert_array_equal(sim.seam.multipliers[~sim.seam.active], 0.0)
     gaps = sim.seam.samples.gaps(sim.C)
-    assert gaps[y_sample > 0.02].max() < 1e-4 and gaps[y_sample < -0.05].min() > sim.barrier.dhat  # not pressed shut
+    assert gaps[y_sample > 0.02].max() < 1e-4
+    # Over the layer only the weak pull (SeamEnergy.HELD) presses the sides onto it: the
+    # closest contact stays tens of micrometres, not nanometres (58 um measured).
+    assert sim.barrier.min_distance(sim.C) > 0.02 * sim.barrier.dhat
     # The layer slides out from between the sheets (in its own plane, clear of both): the
     # whole seam pulls again and closes.
     layer = sim.pieces[2].slice

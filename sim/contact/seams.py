@@ -7,13 +7,14 @@ neighbours never make a barrier (ipctk never pairs primitives that share a verte
 everything else near the seam keeps its barrier.
 
 Contact is never switched off around a seam, so a seam that cannot close without cloth
-passing through cloth stays open instead: a pair whose merge would move cloth through
-cloth or body (a dart's or pleat's folded neighbours within d_hat / 2) stays two vertices
-for good (APART), and a nearly closed open pair that could not be sewn shut right now
-without cloth passing through cloth (a pleat's layer folded between or against the two
-sides) is BLOCKED until it could (`update_blocked`). The seam energy lets go of both
-(`SeamEnergy.hold`): pulling harder would only press the layers together without bound
-(dress_knife's knife pleats: contacts at 40 nm, Newton at its cap down to dt / 16).
+passing through cloth stays open instead: a nearly closed open pair that could not be
+sewn shut right now without cloth passing through cloth or body (a pleat's layer folded
+between or against the two sides, a dart's folded neighbours within d_hat / 2) is BLOCKED
+until it could (`update_blocked`, every step). The seam energy pulls blocked pairs only
+weakly (`SeamEnergy.HELD`): pulling harder would only press the layers together without
+bound (dress_knife's knife pleats: contacts at 40 nm, Newton at its cap down to dt / 16).
+A refused merge is not final either: kept apart for good, a pair refused once while a
+layer slid past stayed open after it had gone (dress_knife: seam47 5.4 mm).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ import scipy.sparse as sp
 from ..seam_mesh import mean_rows, merged_faces, merged_labels
 from .mesh import ContactMesh, cloth_crossings_at, crossing_pairs, crossings_at
 
-OPEN, SEWN, APART, BLOCKED = 0, 1, 2, 3  # states of a matched pair
+# States of a matched pair; 2 (APART: refused merges kept apart for good) reads as BLOCKED.
+OPEN, SEWN, BLOCKED = 0, 1, 3
 
 
 class SeamContact:
@@ -64,7 +66,7 @@ class SeamContact:
         current one); free the blocked ones for which that no longer holds, however far
         apart they have drifted since. Only nearly closed pairs start a block: a seam
         pulled shut from afar wraps around whatever lies between its sides on the way.
-        Returns the (P,) pairs the seam must not pull (BLOCKED or APART)."""
+        Returns the (P,) BLOCKED pairs."""
         test = np.flatnonzero(((self.state == OPEN) & (self.gaps(C) < reach)) | (self.state == BLOCKED))
         if len(test):
             x = mesh.vertices(C)
@@ -77,8 +79,8 @@ class SeamContact:
         return self.held_open()
 
     def held_open(self) -> np.ndarray:
-        """(P,) pairs the seam must not pull: BLOCKED or APART."""
-        return (self.state == BLOCKED) | (self.state == APART)
+        """(P,) pairs the seam pulls only weakly: BLOCKED."""
+        return self.state == BLOCKED
 
     def rows(self, mesh: ContactMesh) -> sp.csr_matrix:
         """(n, n_cp) interpolation of every cloth vertex as in `mesh` (built for the current
@@ -118,10 +120,11 @@ class SeamContact:
             restore: np.ndarray | None = None) -> int:
         """Merge every open pair within d_hat of the barrier (or put back the state
         `restore`, from a checkpoint), installing the new mesh with `use`. Pairs whose
-        merge crosses cloth or body stay apart for good (APART). Returns the pairs newly sewn."""
+        merge crosses cloth or body are BLOCKED. Returns the pairs newly sewn."""
         old = barrier.contact
         if restore is not None:
             state = restore.astype(np.int8)
+            state[state == 2] = BLOCKED
             fresh = (state == SEWN) != (self.state == SEWN)
             if fresh.any():
                 mesh, self.labels = self.mesh(C, state, like=old)
@@ -142,7 +145,7 @@ class SeamContact:
                 crossing = crossings_at(mesh.mesh, x, mesh.n_cloth, first[fresh & (state == SEWN)])
                 bad = fresh & (state == SEWN) & np.isin(first, crossing)
                 if bad.any():
-                    state[bad] = APART
+                    state[bad] = BLOCKED
                     continue
                 if not self.keep_crossings:
                     return 0

@@ -65,6 +65,7 @@ class SeamEnergy(QuadraticEnergy):
         self.k = k
         self.max_step = np.broadcast_to(np.asarray(max_step, float), samples.weights.shape)
         self.active = np.ones(D.shape[0], bool)
+        self.held = np.zeros(D.shape[0], bool)
         self.K0 = self._stiffness()
         self.K = self.K0
         self.scale = 1.0
@@ -79,16 +80,25 @@ class SeamEnergy(QuadraticEnergy):
         out += self.D.T @ self._weighted_multipliers()
 
     def _stiffness(self) -> sp.csr_matrix:
-        return (self.D.T @ sp.diags(self.k * self.samples.weights * self.active) @ self.D).tocsr()
+        pull = self.active + self.HELD * (self.held & ~self.active)
+        return (self.D.T @ sp.diags(self.k * self.samples.weights * pull) @ self.D).tocsr()
 
-    def hold(self, active: np.ndarray) -> bool:
-        """Pull only the samples in `active` (S,) bool; the others carry no force and
-        their multipliers start again from zero. Returns whether anything changed (the
-        caller must then re-assemble constant Hessians, IncrementalPotential.refresh_constant)."""
+    # Samples held open by contact keep this fraction of the stiffness and no multiplier:
+    # let go entirely, a held seam drifted apart and tore on (dress_knife: seam66 19 mm
+    # once its pairs could not be sewn), while a full pull presses the layers between its
+    # sides together without bound.
+    HELD = 0.01
+
+    def hold(self, active: np.ndarray, held: np.ndarray | None = None) -> bool:
+        """Pull the samples in `active` (S,) bool, those in `held` with HELD x the
+        stiffness only, the others not at all; multipliers of all but the active start
+        again from zero. Returns whether anything changed (the caller must then
+        re-assemble constant Hessians, IncrementalPotential.refresh_constant)."""
         active = np.asarray(active, bool)
-        if np.array_equal(active, self.active):
+        held = np.zeros_like(active) if held is None else np.asarray(held, bool) & ~active
+        if np.array_equal(active, self.active) and np.array_equal(held, self.held):
             return False
-        self.active = active
+        self.active, self.held = active, held
         self.multipliers[~active] = 0.0
         self.last_gaps[~active] = np.inf
         self.K0 = self._stiffness()
