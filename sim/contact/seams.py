@@ -28,8 +28,8 @@ import scipy.sparse as sp
 from ..seam_mesh import mean_rows, merged_faces, merged_labels
 from .mesh import ContactMesh, cloth_crossings_at, crossing_pairs, crossings_at
 
-# States of a matched pair; 2 (APART: refused merges kept apart for good) reads as BLOCKED.
-OPEN, SEWN, BLOCKED = 0, 1, 3
+OPEN, SEWN, BLOCKED = 0, 1, 3  # states of a matched pair
+APART = 2  # in checkpoints before refused merges were retried (kept apart for good): read as BLOCKED
 
 
 class SeamContact:
@@ -124,7 +124,7 @@ class SeamContact:
         old = barrier.contact
         if restore is not None:
             state = restore.astype(np.int8)
-            state[state == 2] = BLOCKED
+            state[state == APART] = BLOCKED
             fresh = (state == SEWN) != (self.state == SEWN)
             if fresh.any():
                 mesh, self.labels = self.mesh(C, state, like=old)

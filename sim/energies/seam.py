@@ -80,7 +80,7 @@ class SeamEnergy(QuadraticEnergy):
         out += self.D.T @ self._weighted_multipliers()
 
     def _stiffness(self) -> sp.csr_matrix:
-        pull = self.active + self.HELD * (self.held & ~self.active)
+        pull = self.active + self.HELD * self.held  # disjoint (hold)
         return (self.D.T @ sp.diags(self.k * self.samples.weights * pull) @ self.D).tocsr()
 
     # Samples held open by contact keep this fraction of the stiffness and no multiplier:
