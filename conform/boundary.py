@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from garment.errors import InputError
-from garment.model import Panel
+from sim.errors import InputError
+from sim.patches import Panel
 
 
 class PanelError(InputError):

@@ -1,6 +1,6 @@
 """The control net: boundary rows from the side fits, the interior start, knot insertion.
 
-Side order and orientation (garment.model.SIDES): v0 runs from corner 0 to corner 1 with u
+Side order and orientation (sim.patches.SIDES): v0 runs from corner 0 to corner 1 with u
 increasing, u1 from corner 1 to 2 with v increasing, v1 from corner 2 to 3 with u
 decreasing, u0 from corner 3 back to 0 with v decreasing. The boundary of a tensor-product
 quadratic B-spline patch is the B-spline curve of its boundary control row, so a side fit
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from garment.model import Patch
+from sim.patches import Patch
 
 
 def assemble_boundary(sides: list[np.ndarray]) -> np.ndarray:

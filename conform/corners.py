@@ -20,7 +20,7 @@ from itertools import combinations
 
 import numpy as np
 
-from garment.model import Panel
+from sim.patches import Panel
 
 from .boundary import Outline, PanelError
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from garment.model import Patch
+from sim.patches import Patch
 from sim.bspline import WINDOW, eval_1d_many
 
 from .grading import Grading

@@ -12,7 +12,8 @@ import dataclasses
 
 import numpy as np
 
-from garment.model import BoundaryInterval, Patch, PatchSet
+from sim.patches import Patch, PatchSet
+from sim.seams.spec import BoundaryInterval
 
 from .control_net import refine
 

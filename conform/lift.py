@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-from garment.model import Panel
+from sim.patches import Panel
 from sim.embedding import interpolation_matrix
 
 

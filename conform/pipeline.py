@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from garment.model import SIDES, Panel, PanelSeam, Patch, PatchSet
+from sim.patches import SIDES, Panel, Patch, PatchSet
+from sim.seams.spec import PanelSeam
 
 from . import corners as corners_mod
 from .boundary import Outline, PanelError, extract_outline
@@ -428,7 +429,7 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     names = {p.name for p in panels}
     unknown = {c for c in corners if c not in names and c.rpartition(".")[0] not in names}
     if unknown:
-        from garment.errors import InputError
+        from sim.errors import InputError
 
         raise InputError(f"corners: no panel named {', '.join(sorted(unknown))}")
     patches, quality, prov, failures, tol, splits = {}, {}, {}, {}, {}, {}

@@ -1,7 +1,7 @@
 """Seams between panels -> seams between patch boundaries (parameter samples and intervals).
 
 Every seam point on a panel's outline is projected onto the nearest side curve of the
-patch (garment.model.SIDES); its parameter there is the patch parameter u (sides v0, v1)
+patch (sim.patches.SIDES); its parameter there is the patch parameter u (sides v0, v1)
 or v (sides u0, u1). A point away from the boundary (a stitch inside a panel) is located
 by inverting the rest map. Consecutive samples on one side form a BoundaryInterval; a seam
 that turns a corner splits into two intervals meeting at the corner.
@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from garment.model import SIDES, BoundaryInterval, PanelSeam, Patch, PatchSeam
+from sim.patches import SIDES, Patch
+from sim.seams.spec import BoundaryInterval, PanelSeam, PatchSeam
 
 from .control_net import side_rows
 from .curve_fit import project

@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from garment.model import Panel, PanelSeam
+from sim.patches import Panel
+from sim.seams.spec import PanelSeam
 
 from .boundary import Outline, polygon_area
 

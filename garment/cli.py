@@ -11,7 +11,7 @@ import importlib
 import sys
 
 from garment.commands import COMMANDS
-from garment.errors import InputError, RunStopped
+from sim.errors import InputError, RunStopped
 
 
 def build_parser() -> argparse.ArgumentParser:

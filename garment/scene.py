@@ -84,9 +84,9 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from garment.errors import InputError
-from garment.materials import MEMBRANE_MODELS, MIN_CONTROL_POINTS, PRESETS, QUADRATURES, Material
-from garment.model import Patch
+from sim.errors import InputError
+from sim.materials import MEMBRANE_MODELS, MIN_CONTROL_POINTS, PRESETS, QUADRATURES, Material
+from sim.patches import Patch
 
 CORNERS = ("u0v0", "u1v0", "u0v1", "u1v1")
 SIDES = ("u0", "u1", "v0", "v1")
@@ -258,7 +258,7 @@ class ContactSpec:
     """IPC contact: barrier activation distance dhat (m), stiffness kappa (Pa, area-weighted
     barrier; `kappa = "adaptive"` in a scene chooses it per step as IPC does,
     see sim/contact/stiffness.py), friction mu and eps_v (m/s), cloth self-contact on or off.
-    seams: "merge" (closed seams share their contact vertices, sim/seam_mesh.py) or "band"
+    seams: "merge" (closed seams share their contact vertices, sim/seams/mesh.py) or "band"
     (contact off near every seam sample: cheaper, but cloth may cross there).
     mesh_density: vertices of each cloth's contact (and output) mesh per control point;
     the paper's default is 2, its character scenes use 1 (its table: Hiphop 65K (65K))."""
@@ -294,8 +294,8 @@ class GarmentSpec:
     towards `seam_span` (m) at short seams when given (conform/grading.py), its tucks and
     knife pleats folded into the placement with `fold_pleats` (conform/pleats.py); with
     `pleat_wait`, seams sewn onto a folded pleat's face pull only once its tucks have
-    nearly closed (sim.simulator.Simulator.PLEAT_WAIT). Seams are held
-    by springs of `seam_stiffness` N/m per metre of seam (sim/energies/seam.py).
+    nearly closed (sim.seams.sewing.SewingOptions.pleat_wait_gap). Seams are held
+    by springs of `seam_stiffness` N/m per metre of seam (sim/seams/energy.py).
     `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
 
     name: str

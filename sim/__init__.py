@@ -1,3 +1,3 @@
 """B-spline FEM cloth simulation (the paper's sections 3 to 5)."""
 
-import garment._threads  # noqa: F401  (thread defaults, before CHOLMOD loads)
+from . import threads  # noqa: F401  (thread defaults, before CHOLMOD loads)

@@ -1,5 +1,5 @@
-"""The frame loop for long runs: `Simulator.run` plus checkpoints, resuming, step
-splitting and a clean stop on request (signals).
+"""The frame loop: frames to sinks, with checkpoints, resuming, step splitting and a
+clean stop on request (signals).
 
 Checkpoints are taken at frame boundaries only. A stop request is honoured before the
 next step; when it comes in the middle of a frame (steps_per_frame > 1) the partial frame
@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable
 
-from .checkpoint import Checkpoint, capture, restore, write_checkpoint
+from .checkpoint import Checkpoint, write_checkpoint
 from .recovery import StepFailure, raise_failure, step_with_recovery
 from .sinks import Frame
 from .stats import StepStats
@@ -40,26 +40,27 @@ def drive(sim, frames: int, steps_per_frame: int = 1, sinks: Iterable = (), *,
           resume: Checkpoint | None = None, checkpoint: CheckpointPolicy | None = None,
           should_stop: Callable[[], bool] = lambda: False, floor: float | None = None,
           on_step: Callable[[StepStats], None] | None = None,
-          on_warning: Callable[[str], None] | None = None) -> RunResult:
+          on_warning: Callable[[str], None] | None = None, split: bool = True) -> RunResult:
     """Run frames (resume.frame, frames] of `steps_per_frame` steps each (from frame 0
-    when not resuming), emitting the start frame first as `Simulator.run` does.
+    when not resuming), emitting the start frame first.
 
     Sinks are opened here and always closed. A step failing at the split floor raises
-    SimulationError after a checkpoint of the last completed frame is written.
+    SimulationError after a checkpoint of the last completed frame is written; with
+    split=False steps are taken as they come (no retry, no failure check).
     """
     checkpoint = checkpoint or CheckpointPolicy()
     result = RunResult()
     if resume is not None:
-        restore(sim, resume.state)
+        sim.state = resume.state.copy()
         result.last_frame = resume.frame
 
     def warn(msg):  # counts the splits; None keeps recovery's default (warnings.warn)
         result.splits += 1
         on_warning(msg)
 
-    def save(state=None):
+    def save():
         if checkpoint.path is not None:
-            write_checkpoint(checkpoint.path, sim, result.last_frame, checkpoint.scene_hash, state)
+            write_checkpoint(checkpoint.path, sim.state, result.last_frame, checkpoint.scene_hash)
             result.checkpoints += 1
 
     sinks = list(sinks)
@@ -70,20 +71,23 @@ def drive(sim, frames: int, steps_per_frame: int = 1, sinks: Iterable = (), *,
             opened.append(s)
         emit(sim, sinks, result.last_frame, [])
         for k in range(result.last_frame + 1, frames + 1):
-            frame_start = capture(sim)
+            frame_start = sim.state.copy()
             steps = []
             for _ in range(steps_per_frame):
                 if should_stop():
-                    restore(sim, frame_start)  # drop the partial frame
+                    sim.state = frame_start  # drop the partial frame
                     result.stopped = True
                     save()
                     return result
-                try:
-                    sub = step_with_recovery(sim, floor, warn if on_warning is not None else None)
-                except StepFailure as e:
-                    restore(sim, frame_start)
-                    save()
-                    raise_failure(e, k, str(checkpoint.path) if checkpoint.path else None)
+                if not split:
+                    sub = [sim.step()]
+                else:
+                    try:
+                        sub = step_with_recovery(sim, floor, warn if on_warning is not None else None)
+                    except StepFailure as e:
+                        sim.state = frame_start
+                        save()
+                        raise_failure(e, k, str(checkpoint.path) if checkpoint.path else None)
                 steps.extend(sub)
                 if on_step is not None:
                     on_step(sub[-1])

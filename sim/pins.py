@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from garment.model import Patch
+from sim.patches import Patch
 
 
 @dataclass

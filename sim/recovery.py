@@ -17,9 +17,8 @@ from typing import Callable
 import numpy as np
 from sksparse.cholmod import CholmodError
 
-from garment.errors import SimulationError
+from sim.errors import SimulationError
 
-from .checkpoint import capture, restore
 from .stats import StepStats
 
 # Numerical failures worth a retry; anything else is a bug and keeps its traceback.
@@ -49,21 +48,21 @@ def step_with_recovery(sim, floor: float | None = None,
     """
     dt = sim.dt
     floor = dt / 2**DEFAULT_SPLITS if floor is None else floor
-    start = capture(sim)
+    start = sim.state.copy()
     warn = on_warning or (lambda msg: warnings.warn(msg, SplitWarning, stacklevel=3))
     try:
         stats = _advance(sim, dt, floor, warn)
     except StepFailure:
-        restore(sim, start)
+        sim.state = start
         raise
     # Two halves add up to dt only to round-off: keep the time grid of unsplit runs.
     if len(stats) > 1:
-        sim.t = start.t + dt
+        sim.state.t = start.t + dt
     return stats
 
 
 def _advance(sim, dt: float, floor: float, warn) -> list[StepStats]:
-    before = capture(sim)
+    before = sim.state.copy()
     try:
         st = sim.step()
         problem = failure(sim, st)
@@ -71,7 +70,7 @@ def _advance(sim, dt: float, floor: float, warn) -> list[StepStats]:
         st, problem = None, f"the solver raised {type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"
     if problem is None:
         return [st]
-    restore(sim, before)
+    sim.state = before
     if dt / 2 < floor * (1 - 1e-9):
         raise StepFailure(before.t, diagnose(sim, st, problem, dt))
     warn(f"t = {before.t:.6g} s: {problem}; retrying as two steps of {dt / 2:.3g} s")
@@ -89,11 +88,11 @@ def failure(sim, st: StepStats) -> str | None:
     if not math.isfinite(st.energy):
         return "non-finite energy"
     if not st.converged:
-        if st.newton_iterations >= sim.newton.max_iterations:
-            return f"Newton hit its iteration cap ({sim.newton.max_iterations})"
-        if st.residual < 10.0 * sim.newton.tol:
+        if st.newton_iterations >= sim.model.newton.max_iterations:
+            return f"Newton hit its iteration cap ({sim.model.newton.max_iterations})"
+        if st.residual < 10.0 * sim.model.newton.tol:
             return None  # a stall at round-off next to the tolerance: converged in effect
-        return f"the line search stalled (residual {st.residual:.2e} m/s, tolerance {sim.newton.tol:g})"
+        return f"the line search stalled (residual {st.residual:.2e} m/s, tolerance {sim.model.newton.tol:g})"
     return None
 
 
@@ -105,7 +104,7 @@ def diagnose(sim, st: StepStats | None, problem: str, dt: float) -> str:
                  "cloth is trapped against it, or the body moves through or starts inside the garment")
     elif "non-finite" in problem:
         cause = "the time step is likely too large for the material stiffness, or a material value is extreme"
-    elif sim.barrier is not None and extra.get("min_distance", math.inf) < 1e-3 * sim.barrier.dhat:
+    elif sim.model.barrier is not None and extra.get("min_distance", math.inf) < 1e-3 * sim.model.barrier.dhat:
         cause = ("the cloth is squeezed against an obstacle or itself (closest distance "
                  f"{extra['min_distance']:.2g} m): check for a body starting inside the garment "
                  "or for layers pressed together")

@@ -6,7 +6,7 @@ Reads a `--mesh-dir` folder of `npz` frames (`<name>_<frame>.npz`; obstacles are
 without `uv`) and prints, per frame: non-finite vertices, cloth-obstacle intersecting
 triangle pairs, and cloth-cloth intersecting pairs. The cloth pieces are checked as one
 mesh whose vertices at the very same position are one vertex: once sewn, panels share
-their seam vertices bit for bit (sim/seam_mesh.py), and triangles sharing a vertex are
+their seam vertices bit for bit (sim/seams/mesh.py), and triangles sharing a vertex are
 not tested against each other. Exits 1 if any frame has NaN or an intersecting pair.
 """
 

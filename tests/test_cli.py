@@ -10,7 +10,7 @@ import pytest
 from garment.cli import main
 from garment.io import read_frame
 from garment.scene import loads_scene
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from viz.rerun_sink import read_rrd_positions
 
 SCENE = """
@@ -39,7 +39,7 @@ def test_simulate_writes_recording_and_meshes(tmp_path):
     assert main(["simulate", str(scene), "-o", str(rrd), "--mesh-dir", str(frames), "-q"]) == 0
 
     # The same scene from Python gives the same final frame: the CLI is a thin layer.
-    sim = Simulator.from_scene(loads_scene(SCENE))
+    sim = build_simulator(loads_scene(SCENE))
     for _ in range(8):
         sim.step()
     expected = sim.positions("sheet")

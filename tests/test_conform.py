@@ -13,7 +13,7 @@ from conform.corners import pick_corners
 from conform.curve_fit import evaluate, fit_side, fit_side_reweighted, sample_polyline
 from conform.mips import MipsOptions, MipsProblem, _newton_terms, _point_terms, det, rule_points
 from conform.mips import refine as mips_refine
-from garment.model import Panel, Patch
+from sim.patches import Panel, Patch
 from sim.bspline import basis_matrix
 
 

@@ -13,7 +13,7 @@ from conform import ConformOptions, PanelError, conform_all
 from conform.boundary import extract_outline
 from conform.seams import invert
 from garment.cli import main
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset, save_patchset
 from sim.bspline import basis_matrix

@@ -189,7 +189,8 @@ def ear_clip(P: np.ndarray) -> np.ndarray:
 
 
 def test_a_darted_mesh_panel_is_split_and_lifted_from_its_mesh():
-    from garment.model import Panel, PanelSeam
+    from sim.patches import Panel
+    from sim.seams.spec import PanelSeam
 
     corners = np.array([[0, 0], [0.5, 0], [0.5, 0.6], [0.265, 0.6], [0.25, 0.35], [0.235, 0.6], [0, 0.6]])
     pts = []

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.io.obstacles import load_obstacle
 from garment.scene import loads_scene
 from sim.assembly import BlockPattern
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from tests.intersections import intersecting_pairs
 
 DROP = """
@@ -43,10 +43,10 @@ def test_intersection_check_detects_crossings():
 
 
 def test_sheet_on_sphere_never_intersects():
-    sim = Simulator.from_scene(loads_scene(DROP.format(height=0.2)))
+    sim = build_simulator(loads_scene(DROP.format(height=0.2)))
     ball = load_obstacle(loads_scene(DROP.format(height=0.2)).obstacles[0])
     ground_z = 0.0
-    faces = sim.pieces[0].topology.faces
+    faces = sim.model.pieces[0].topology.faces
     for _ in range(22):  # free fall ~0.1 m, then contact with the ball
         st = sim.step()
         x = sim.positions("sheet")
@@ -66,12 +66,12 @@ def test_contact_mesh_density_sets_vertices_per_control_point():
     # 10 x 10 control points: 14 x 14 vertices by default (about 2 per point), 10 x 10 at 1.
     for density, n in (("", 196), ("mesh_density = 1\n", 100), ("mesh_density = 4\n", 400)):
         scene = loads_scene(DROP.format(height=0.2).replace("[time]", density + "[time]"))
-        assert Simulator.from_scene(scene).barrier.contact.n_cloth == n
+        assert build_simulator(scene).model.barrier.contact.n_cloth == n
 
 
 def test_barrier_derivatives_on_control_points():
-    sim = Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))
-    e = sim.barrier
+    sim = build_simulator(loads_scene(DROP.format(height=0.1605)))
+    e = sim.model.barrier
     C = sim.C.copy()
     assert e.value(C) > 0.0  # the sheet's centre is within dhat of the ball's top
     rng = np.random.default_rng(1)
@@ -105,8 +105,8 @@ def test_barrier_derivatives_on_control_points():
 def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread):
     """Back at the point before a rejected trial, the barrier reuses that point's
     collision set; a third point rebuilds into the older one's."""
-    sim = Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))
-    e = sim.barrier
+    sim = build_simulator(loads_scene(DROP.format(height=0.1605)))
+    e = sim.model.barrier
     C1 = sim.C.copy()
     C2 = C1 + [0.0, 0.0, 5e-4]  # lifted past dhat: no contact
     C3 = C1 + [0.0, 0.0, 2e-4]
@@ -117,7 +117,7 @@ def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread)
     E3 = e.value(C3)
     assert e.collisions is set2 and 0.0 < E3 < E1  # C2's set, rebuilt at C3
     assert e.value(C1) == E1 and e.collisions is set1
-    fresh = Simulator.from_scene(loads_scene(DROP.format(height=0.1605))).barrier
+    fresh = build_simulator(loads_scene(DROP.format(height=0.1605))).model.barrier
     assert fresh.value(C3) == E3  # the reused set holds exactly C3's collisions
 
 
@@ -138,7 +138,7 @@ def test_projected_contact_hessian_stays_psd_in_pattern():
 
 def test_initial_intersection_is_an_input_error():
     with pytest.raises(InputError, match="intersect"):
-        Simulator.from_scene(loads_scene(DROP.format(height=0.1)))
+        build_simulator(loads_scene(DROP.format(height=0.1)))
 
 
 def _fd_check(e, C, rows, h, rtol):
@@ -162,8 +162,8 @@ def _fd_check(e, C, rows, h, rtol):
 
 def test_friction_derivatives_on_control_points():
     text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-2")
-    sim = Simulator.from_scene(loads_scene(text))
-    f = sim.friction
+    sim = build_simulator(loads_scene(text))
+    f = sim.model.friction
     f.lag(sim.C)
     assert f.active
     rng = np.random.default_rng(2)
@@ -180,13 +180,13 @@ def test_friction_opposes_sliding():
     """The friction force on a sliding sheet points against the slide, with magnitude
     mu x (normal force) once the slide is faster than eps_v."""
     text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-3")
-    sim = Simulator.from_scene(loads_scene(text))
-    sim.friction.lag(sim.C)
+    sim = build_simulator(loads_scene(text))
+    sim.model.friction.lag(sim.C)
     slide = np.array([0.01, 0.0, 0.0])  # 1 m/s over dt = 0.01 s, far above eps_v
     g = np.zeros_like(sim.C)
-    sim.friction.add_gradient(sim.C + slide, g)
+    sim.model.friction.add_gradient(sim.C + slide, g)
     gb = np.zeros_like(sim.C)
-    sim.barrier.add_gradient(sim.C, gb)
+    sim.model.barrier.add_gradient(sim.C, gb)
     assert g[:, 0].sum() > 0.0  # energy grows along the slide: the force opposes it
     assert abs(g[:, 1].sum()) < 0.05 * g[:, 0].sum()  # no sideways force
     normal = np.abs(gb[:, 2].sum())

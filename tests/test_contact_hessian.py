@@ -10,13 +10,13 @@ import scipy.sparse as sp
 from garment.scene import loads_scene
 from sim.assembly import BlockPattern, add_dof_matrix
 from sim.contact.hessian_map import ContactHessianMap
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from tests.test_contact import DROP
 
 
 @pytest.fixture(scope="module")
 def sim():
-    return Simulator.from_scene(loads_scene(DROP.format(height=0.1605)))
+    return build_simulator(loads_scene(DROP.format(height=0.1605)))
 
 
 def reference(W, pattern, H, n_cloth):
@@ -34,18 +34,18 @@ def reference(W, pattern, H, n_cloth):
 
 def pinned_pattern(sim, every=7):
     """The barrier's pattern with every `every`-th control point pinned."""
-    free = np.arange(sim.n_cp)
+    free = np.arange(sim.model.n_cp)
     free[::every] = -1
     ok = free >= 0
     free[ok] = np.arange(ok.sum())
-    return BlockPattern.from_stencils(free, sim.barrier.stencils())
+    return BlockPattern.from_stencils(free, sim.model.barrier.stencils())
 
 
 def synthetic_collisions(sim, n=300, seed=0):
     """Random PSD 12x12 Hessians on 4-vertex stencils: a cloth triangle's vertices plus a
     random vertex (often far away: off-pattern) or an obstacle vertex (ignored)."""
     rng = np.random.default_rng(seed)
-    mesh = sim.barrier.contact
+    mesh = sim.model.barrier.contact
     V = mesh.mesh.num_vertices
     faces = mesh.cloth_faces[rng.integers(0, len(mesh.cloth_faces), n)]
     other = np.where(rng.random(n) < 0.7, rng.integers(0, mesh.n_cloth, n), rng.integers(mesh.n_cloth, V, n))
@@ -73,9 +73,9 @@ def rel_err(a, b):
 
 def test_synthetic_far_pairs_and_pins_match_reference(sim):
     pattern = pinned_pattern(sim)
-    W = sim.barrier.contact.W
+    W = sim.model.barrier.contact.W
     H, hess, ids = synthetic_collisions(sim)
-    ref, ref_moved = reference(W, pattern, H, sim.barrier.contact.n_cloth)
+    ref, ref_moved = reference(W, pattern, H, sim.model.barrier.contact.n_cloth)
     assert ref_moved > 0  # the case exercises off-pattern pairs
     cmap = ContactHessianMap(W, pattern)
     assert cmap.n_colors <= 16
@@ -95,7 +95,7 @@ def test_synthetic_far_pairs_and_pins_match_reference(sim):
     assert np.all(r > c) and np.count_nonzero(v) == ref_moved
     B = sp.csr_matrix((v, (r, c)), shape=(pattern.n_dofs, pattern.n_dofs))
     exact = pattern.full(data) - sp.diags(cmap.shift) + B + B.T
-    n = 3 * sim.barrier.contact.n_cloth
+    n = 3 * sim.model.barrier.contact.n_cloth
     W3 = sp.kron(W, sp.identity(3), format="csr")
     free_points = np.flatnonzero(pattern.free >= 0)
     dofs = (3 * free_points[:, None] + np.arange(3)).ravel()
@@ -105,10 +105,10 @@ def test_synthetic_far_pairs_and_pins_match_reference(sim):
 
 def test_adds_into_existing_data(sim):
     pattern = pinned_pattern(sim, every=5)
-    W = sim.barrier.contact.W
+    W = sim.model.barrier.contact.W
     H, _, _ = synthetic_collisions(sim, n=50, seed=3)
     base = np.random.default_rng(1).standard_normal(pattern.nnz)
-    ref, _ = reference(W, pattern, H, sim.barrier.contact.n_cloth)
+    ref, _ = reference(W, pattern, H, sim.model.barrier.contact.n_cloth)
     data = base.copy()
     ContactHessianMap(W, pattern).add(H, data)
     assert rel_err(data, base + ref) < 1e-12
@@ -116,11 +116,11 @@ def test_adds_into_existing_data(sim):
 
 def test_ipctk_barrier_hessian_matches_reference(sim):
     """A real contact state (the sheet on the ball) on the simulator's own pattern."""
-    e = sim.barrier
+    e = sim.model.barrier
     x = e._update(sim.C)
     assert len(e.collisions) > 0
     H = e.potential.hessian(e.collisions, e.contact.mesh, x, ipctk.PSDProjectionMethod.CLAMP)
-    pattern = sim.potential.pattern
+    pattern = sim.model.potential.pattern
     ref, ref_moved = reference(e.contact.W, pattern, H, e.contact.n_cloth)
     data = np.zeros(pattern.nnz)
     moved = ContactHessianMap(e.contact.W, pattern).add(H, data)

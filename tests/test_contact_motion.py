@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.io.bodies import load_sequence
 from garment.scene import load_scene, loads_scene
+from garment.build import build_simulator
 from sim.simulator import Simulator
 from tests.intersections import intersecting_pairs
 
@@ -48,12 +49,12 @@ def _ball_sequence(path: Path, frames: int = 12, rise: float = 0.02, frame_dt: f
 
 def _check_frame(sim: Simulator) -> None:
     """No NaN, no cloth triangle through a body triangle, another piece or itself."""
-    pieces = [(sim.positions(p.name), p.topology.faces) for p in sim.pieces]
+    pieces = [(sim.positions(p.name), p.topology.faces) for p in sim.model.pieces]
     bodies = sim.obstacle_positions()
     for x, f in pieces:
         assert np.all(np.isfinite(x))
         assert intersecting_pairs(x, f) == 0
-        for o in sim.obstacles:
+        for o in sim.model.obstacles:
             assert intersecting_pairs(x, f, bodies[o.name], o.faces) == 0
     for i in range(len(pieces)):
         for j in range(i + 1, len(pieces)):
@@ -62,8 +63,8 @@ def _check_frame(sim: Simulator) -> None:
 
 def test_animated_body_pushes_the_cloth_without_passing_through(tmp_path):
     path = _ball_sequence(tmp_path / "ball.npz")
-    sim = Simulator.from_scene(loads_scene(PUSH.format(path=path.as_posix())))
-    seq = sim.obstacles[0].sequence
+    sim = build_simulator(loads_scene(PUSH.format(path=path.as_posix())))
+    seq = sim.model.obstacles[0].sequence
     for _ in range(18):  # the ball meets the sheet at about step 4, then lifts it 7 cm
         st = sim.step()
         _check_frame(sim)
@@ -82,20 +83,20 @@ def test_animated_body_pushes_the_cloth_without_passing_through(tmp_path):
 
 def test_two_plates_conserve_momentum():
     scene = load_scene(SCENES / "two_plates.toml")
-    sim = Simulator.from_scene(scene)
-    P0 = (sim.mass[:, None] * sim.V).sum(axis=0)
-    scale = float((sim.mass * np.linalg.norm(sim.V, axis=1)).sum())
+    sim = build_simulator(scene)
+    P0 = (sim.model.mass[:, None] * sim.V).sum(axis=0)
+    scale = float((sim.model.mass * np.linalg.norm(sim.V, axis=1)).sum())
     contacts = 0
     for _ in range(12):  # they meet at step 4 and stay in contact
         st = sim.step()
         _check_frame(sim)
         contacts += st.extra["contact_count"] > 0
-        P = (sim.mass[:, None] * sim.V).sum(axis=0)
+        P = (sim.model.mass[:, None] * sim.V).sum(axis=0)
         assert np.linalg.norm(P - P0) / scale < 1e-6
     assert contacts >= 6
     # The collision slowed both plates: momentum moved between them, not out of the system.
-    v_floor = sim.V[sim.pieces[0].slice, 2].mean()
-    v_wall = sim.V[sim.pieces[1].slice, 2].mean()
+    v_floor = sim.V[sim.model.pieces[0].slice, 2].mean()
+    v_wall = sim.V[sim.model.pieces[1].slice, 2].mean()
     assert v_floor < 0.45 and v_wall > -0.45
 
 
@@ -122,7 +123,7 @@ dt = 0.01
 
 
 def _turned_angle(mu: float, steps: int = 10) -> float:
-    sim = Simulator.from_scene(loads_scene(SPIN.format(mu=mu)))
+    sim = build_simulator(loads_scene(SPIN.format(mu=mu)))
     x0 = sim.positions("sheet")
     for _ in range(steps):
         sim.step()
@@ -210,13 +211,13 @@ def test_off_pattern_couplings_modes(mode):
     what the partial factorization's exact solves buy."""
     from sim.newton import NewtonOptions
 
-    sim = Simulator.from_scene(load_scene(SCENES / "two_plates.toml"), NewtonOptions(off_pattern=mode))
-    P0 = (sim.mass[:, None] * sim.V).sum(axis=0)
-    scale = float((sim.mass * np.linalg.norm(sim.V, axis=1)).sum())
+    sim = build_simulator(load_scene(SCENES / "two_plates.toml"), NewtonOptions(off_pattern=mode))
+    P0 = (sim.model.mass[:, None] * sim.V).sum(axis=0)
+    scale = float((sim.model.mass * np.linalg.norm(sim.V, axis=1)).sum())
     for _ in range(6):
         sim.step()
-    drift = np.linalg.norm((sim.mass[:, None] * sim.V).sum(axis=0) - P0) / scale
-    assert sim.potential.moved_entries > 0
+    drift = np.linalg.norm((sim.model.mass[:, None] * sim.V).sum(axis=0) - P0) / scale
+    assert sim.model.potential.moved_entries > 0
     assert (drift < 1e-9) if mode == "merge" else (drift > 1e-4)
 
 
@@ -227,7 +228,7 @@ def test_sphere_scene_sheet_rests_on_the_sphere():
     sphere's top."""
     from garment.bench.common import scene
 
-    sim = Simulator.from_scene(scene("sphere", (20, 20)))
+    sim = build_simulator(scene("sphere", (20, 20)))
     for _ in range(80):
         st = sim.step()
         _check_frame(sim)

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from garment.materials import Material
-from garment.model import Patch
+from sim.materials import Material
+from sim.patches import Patch
 from sim.assembly import BlockPattern, deformation_gradients
 from sim.energies import (BendingEnergy, ExternalForceEnergy, InertiaEnergy, MembraneFBW,
                           MembraneStVK)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from garment.scene import load_scene
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from tests.intersections import garment_intersections
 
 SCENE = Path(__file__).resolve().parents[1] / "assets" / "scenes" / "poncho_rumba.toml"
@@ -22,17 +22,17 @@ SCENE = Path(__file__).resolve().parents[1] / "assets" / "scenes" / "poncho_rumb
 def test_poncho_sews_onto_the_dancing_body_without_intersections():
     scene = load_scene(SCENE)
     frames = 12  # 0.3 s pre-roll + 0.18 s of the dance
-    sim = Simulator.from_scene(dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=frames)))
-    body = sim.obstacles[0]
+    sim = build_simulator(dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=frames)))
+    body = sim.model.obstacles[0]
     gaps = []
     for frame in range(frames):
         for _ in range(scene.time.steps_per_frame):
             sim.step()
-        x, body_pairs, cloth_pairs = garment_intersections(sim.pieces, sim.C, body.at(sim.t), body.faces)
+        x, body_pairs, cloth_pairs = garment_intersections(sim.model.pieces, sim.C, body.at(sim.t), body.faces)
         assert np.all(np.isfinite(x)), frame
         assert body_pairs == 0, f"garment-body, frame {frame}"
         # Within the garment: none at all (sewn panels share their seam vertices exactly).
         assert cloth_pairs == 0, f"garment self-intersection, frame {frame}: {cloth_pairs} pairs"
-        gaps.append(float(sim.seam.samples.gaps(sim.C).max()))
+        gaps.append(float(sim.model.seam.samples.gaps(sim.C).max()))
     assert gaps[0] > 0.05  # the seams start open...
     assert max(gaps[-5:]) < 1e-3  # ...and are closed below 1 mm once sewn, while the body dances

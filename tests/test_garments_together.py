@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from garment.scene import parse_scene
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from tests.intersections import garment_intersections
 
 SPACING = 0.02
@@ -51,13 +51,13 @@ def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
         "contact": {"dhat": 1e-3, "kappa": "adaptive", "mu": 0.2},
         "time": {"dt": 0.01, "frames": 30, "preroll": 0.2},
     }
-    sim = Simulator.from_scene(parse_scene(doc, tmp_path / "bibs.toml"))
-    names = [p.name for p in sim.pieces]
+    sim = build_simulator(parse_scene(doc, tmp_path / "bibs.toml"))
+    names = [p.name for p in sim.model.pieces]
     assert names == ["inner.front", "inner.back", "outer.front", "outer.back"]
 
     # Each garment's seams carry its own stiffness: k = 2 E / sum w gap^2 per garment.
-    seam = sim.seam
-    inner_rows = np.repeat([s.piece_a.startswith("inner") for s in sim.seams], [len(s.uv_a) for s in sim.seams])
+    seam = sim.model.seam
+    inner_rows = np.repeat([s.piece_a.startswith("inner") for s in sim.model.seams], [len(s.uv_a) for s in sim.model.seams])
     D, w = seam.D.toarray(), seam.samples.weights
     C = np.random.default_rng(0).normal(size=sim.C.shape)
     for rows, k in ((inner_rows, 1e6), (~inner_rows, 2e5)):
@@ -67,17 +67,17 @@ def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
     np.testing.assert_allclose((seam.K0 @ C), (sp.csr_matrix(D).T @ sp.diags(
         np.where(inner_rows, 1e6, 2e5) * w) @ sp.csr_matrix(D)) @ C, rtol=1e-12, atol=1e-9)
 
-    ball = sim.obstacles[0]
+    ball = sim.model.obstacles[0]
     merged = []
     for step in range(30):
         merged.append(sim.step().extra["seam_pairs_sewn"])
-        x, ball_pairs, cloth_pairs = garment_intersections(sim.pieces, sim.C, ball.at(sim.t), ball.faces)
+        x, ball_pairs, cloth_pairs = garment_intersections(sim.model.pieces, sim.C, ball.at(sim.t), ball.faces)
         assert np.all(np.isfinite(x)), step
         assert ball_pairs == 0, f"garment-ball, step {step}"
         # Sewn panels share their seam vertices exactly; no other triangle pair may cross.
         assert cloth_pairs == 0, f"cloth-cloth intersection, step {step}: {cloth_pairs} pairs"
-    assert (sim.seam_contact.state == 1).all() and sum(merged) == len(sim.seam_contact.state)  # sewn shut in the pre-roll
-    gaps = sim.seam.samples.gaps(sim.C)
+    assert (sim.model.seam_contact.state == 1).all() and sum(merged) == len(sim.model.seam_contact.state)  # sewn shut in the pre-roll
+    gaps = sim.model.seam.samples.gaps(sim.C)
     assert gaps[inner_rows].max() < 1e-3 and gaps[~inner_rows].max() < 1e-3
     # Both rest on the ball, the outer one on the inner one: both hang below its top.
     assert x[:, 2].max() < 0.16

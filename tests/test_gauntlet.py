@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 from garment.cli import main
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.io.patchfile import load_patchset
 
 from test_conform_io import bad_panels, write_obj

@@ -8,7 +8,7 @@ import pytest
 from conform import ConformOptions
 from conform.grading import RATIO, Request, grade
 from conform.pipeline import conform_all
-from garment.model import PanelSeam
+from sim.seams.spec import PanelSeam
 from tests.test_conform import polygon_panel
 
 RECT = np.array([[0.0, 0.0], [0.4, 0.0], [0.4, 0.2], [0.0, 0.2]])

@@ -7,9 +7,11 @@ import numpy as np
 
 from conform.knot_insertion import refine_net, refine_patchset
 from garment.bench.garment import _refined
-from garment.model import BoundaryInterval, Patch, PatchSeam, PatchSet
+from sim.patches import Patch, PatchSet
+from sim.seams.spec import BoundaryInterval, PatchSeam
 from garment.scene import parse_scene
 from sim.embedding import interpolation_matrix
+from garment.build import build_simulator
 from sim.simulator import Simulator
 from test_garments_together import _bib
 
@@ -50,45 +52,43 @@ def test_a_sewn_garment_continues_exactly_at_half_the_span(tmp_path):
            "obstacle": [{"name": "ball", "sphere": {"radius": 0.1, "subdivisions": 3}}],
            "contact": {"dhat": 1e-3, "kappa": "adaptive"}, "time": {"dt": 0.01, "frames": 10, "preroll": 0.05}}
     scene = parse_scene(doc, tmp_path / "bib.toml")
-    coarse = Simulator.from_scene(scene)
+    coarse = build_simulator(scene)
     for _ in range(6):
         coarse.step()
     fine = _refined(coarse, scene, 1, tmp_path)
     assert fine.t == coarse.t and fine.n_dofs > 2.5 * coarse.n_dofs
-    for p in coarse.pieces:
+    for p in coarse.model.pieces:
         n, m = p.patch.shape
         u, v = np.meshgrid(np.linspace(0, n - 2, 7), np.linspace(0, m - 2, 7))
         for X, Y in ((coarse.control_points(p.name), fine.control_points(p.name)),
                      (coarse.velocities(p.name), fine.velocities(p.name))):
             assert np.abs(_surface(X, u.ravel(), v.ravel()) - _surface(Y, 2 * u.ravel(), 2 * v.ravel())).max() < 1e-12
-    np.testing.assert_allclose(fine.seam.samples.gaps(fine.C), coarse.seam.samples.gaps(coarse.C), atol=1e-12)
+    np.testing.assert_allclose(fine.model.seam.samples.gaps(fine.C), coarse.model.seam.samples.gaps(coarse.C), atol=1e-12)
     assert fine.step().converged
 
 
 def test_only_a_handed_over_state_may_start_with_crossings():
     import pytest
 
-    from garment.errors import InputError
-    from garment.materials import PRESETS
-    from garment.model import Patch
-    from garment.scene import ContactSpec
+    from sim.errors import InputError
+    from sim.materials import PRESETS
+    from sim.patches import Patch
     from sim.contact.mesh import crossing_pairs
+    from sim.model import ContactOptions, bspline_model
 
-    def crossed(cls):
+    def crossed(keep_crossings):
         a = Patch.rectangle("a", (0.2, 0.2), (6, 6), (-0.1, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
         b = Patch.rectangle("b", (0.2, 0.2), (6, 6), (-0.1, 0.0, -0.1), (1, 0, 0), (0, 0, 1))  # through a
-        return cls([a, b], [PRESETS["cotton"]] * 2, contact=ContactSpec(enabled=True, adaptive_kappa=True))
+        return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, contact=ContactOptions(adaptive_kappa=True),
+                                       keep_crossings=keep_crossings))
 
     with pytest.raises(InputError, match="intersects"):
-        crossed(Simulator)
+        crossed(False)
 
-    class HandedOver(Simulator):
-        keep_crossings = True
-
-    sim = crossed(HandedOver)
-    mesh = sim.barrier.contact
+    sim = crossed(True)
+    mesh = sim.model.barrier.contact
     x = mesh.vertices(sim.C)
-    n_a = sim.pieces[0].W.shape[0]
+    n_a = sim.model.pieces[0].W.shape[0]
     pairs = crossing_pairs(mesh.mesh, x, mesh.n_cloth)
     assert pairs and all(i < n_a <= j for i, j in pairs)  # only a-b pairs, where the sheets cross
     separate = np.array(x)

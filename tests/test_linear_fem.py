@@ -7,14 +7,17 @@ import numpy as np
 import pytest
 
 from garment.bench.common import scene
+from garment.build import build_linear_simulator, build_simulator
 from garment.bench.plate import navier_coefficient
-from garment.materials import Material
+from sim.materials import Material
 from sim.assembly import BlockPattern
 from sim.energies import MembraneFBW, MembraneStVK
-from sim.linear import LinearSimulator, equilateral_mesh, grid_mesh
+from sim.linear import equilateral_mesh, grid_mesh
 from sim.linear.bending_bergou import bergou_bending
 from sim.linear.membrane import triangle_points
-from sim.linear.simulator import membrane_params, select_vertices
+from sim.energies import membrane_params
+from sim.linear.model import select_vertices
+from sim.state import State
 
 MAT = Material()
 
@@ -131,11 +134,11 @@ def test_linear_membrane_homogeneous_stretch():
 def plate_error(n: int, layout: str) -> float:
     sc = scene("plate")
     cloth = sc.cloths[0]
-    sim = LinearSimulator.from_scene(sc, n, layout)
+    sim = build_linear_simulator(sc, n, layout)
     sim.step()
-    mesh = sim.pieces[0].mesh
+    mesh = sim.model.pieces[0].mesh
     k, bary = mesh.locate((0.5, 0.5))
-    w = float(bary @ (sim.C - sim.C0)[mesh.faces[k]] @ np.asarray(sc.load.pressure_direction))
+    w = float(bary @ (sim.C - sim.model.C0)[mesh.faces[k]] @ np.asarray(sc.load.pressure_direction))
     ref = navier_coefficient() * sc.load.pressure * cloth.size[0] ** 4 / cloth.material.bending_stiffness
     return abs(w - ref) / ref
 
@@ -160,15 +163,15 @@ def test_pins_map_by_position():
 
 
 def test_tiny_hanging_run():
-    sim = LinearSimulator.from_scene(scene("hanging"), 12)
-    assert sim.pinned.sum() == 2
+    sim = build_linear_simulator(scene("hanging"), 12)
+    assert sim.model.pinned.sum() == 2
     for _ in range(3):
         st = sim.step()
         assert st.converged
-    pins = np.flatnonzero(sim.pinned)
+    pins = np.flatnonzero(sim.model.pinned)
     np.testing.assert_allclose(sim.C[pins], sim.pin_targets(sim.t)[pins])
-    free = ~sim.pinned
-    assert np.mean(sim.C[free, 2] - sim.C0[free, 2]) < -1e-3  # falls under gravity
+    free = ~sim.model.pinned
+    assert np.mean(sim.C[free, 2] - sim.model.C0[free, 2]) < -1e-3  # falls under gravity
     assert sim.positions("sheet").shape == (144, 3)
 
 
@@ -204,11 +207,18 @@ def test_compare_locking_and_ablation_rows():
 
 
 @pytest.mark.parametrize("name", ["hanging", "sphere"])
-def test_linear_simulator_carries_every_simulator_attribute(name):
-    # LinearSimulator reuses Simulator.step and friends: a state attribute added to
-    # Simulator.__init__ must be mirrored in LinearSimulator.__init__.
-    from sim.simulator import Simulator
-
+def test_both_discretisations_continue_bit_for_bit_from_a_saved_state(name, tmp_path, one_ipc_thread):
+    # Both are a sim.model.Model stepped by sim.stepper: one State holds everything either
+    # evolves, so a state saved and loaded into a fresh simulator continues identically.
     sc = scene(name, (8, 8))
-    missing = set(vars(Simulator.from_scene(sc))) - set(vars(LinearSimulator.from_scene(sc, 8)))
-    assert not missing, f"LinearSimulator lacks {sorted(missing)}"
+    for build in (lambda: build_simulator(sc), lambda: build_linear_simulator(sc, 8)):
+        a = build()
+        a.step()
+        a.step()
+        path = a.state.save(tmp_path / "state.npz")
+        b = build()
+        b.state = State.load(path)
+        for _ in range(2):
+            a.step()
+            b.step()
+        assert np.array_equal(a.C, b.C) and np.array_equal(a.V, b.V) and a.t == b.t

@@ -7,8 +7,8 @@ import numpy as np
 import scipy.sparse as sp
 import pytest
 
-from garment.materials import Material
-from garment.model import Patch
+from sim.materials import Material
+from sim.patches import Patch
 from sim.energies import BendingEnergy, ExternalForceEnergy
 from sim.newton import NewtonOptions, minimize
 from sim.pins import PinGroup, select
@@ -16,6 +16,8 @@ from sim.potential import IncrementalPotential
 from sim.quadrature import span_centres
 from sim.rest import point_data
 from sim.stats import StepStats
+from garment.build import build_simulator
+from sim.model import bspline_model
 from sim.simulator import Simulator
 
 SHEET = Patch.rectangle("sheet", (0.3, 0.3), (8, 8))
@@ -27,7 +29,7 @@ def tension_sheet(membrane: str, project: bool = False, speed: float = 0.5) -> S
     right = select(SHEET.shape, sides=("u1",))
     pins = [PinGroup(left, np.array([-speed, 0.0, 0.0])), PinGroup(right, np.array([speed, 0.0, 0.0]))]
     opts = NewtonOptions(project=project, record_gradients=True, tol=1e-12, max_iterations=20)
-    return Simulator([SHEET], [Material(membrane=membrane)], pins, newton=opts)
+    return Simulator(bspline_model([SHEET], [Material(membrane=membrane)], pins, newton=opts))
 
 
 # ------------------------------------------------------------------ quadratic convergence
@@ -42,7 +44,7 @@ def test_newton_step_error_is_quadratic(membrane):
     for _ in range(3):
         stats = sim.step()
         assert stats.converged
-    ip = sim.potential  # the inertia target of the last step is still set
+    ip = sim.model.potential  # the inertia target of the last step is still set
     C_star = sim.C.copy()
     free = ip.free_points
     g_star = np.linalg.norm(ip.gradient(C_star)[free])
@@ -110,11 +112,11 @@ def test_recorded_gradient_norms_converge_quadratically(membrane):
 def test_projected_newton_converges_with_default_settings():
     """The production setting (projected Hessian, paper tolerance) converges quickly too."""
     left = select(SHEET.shape, sides=("u0",))
-    sim = Simulator([SHEET], [Material()], [PinGroup(left, np.zeros(3))])
+    sim = Simulator(bspline_model([SHEET], [Material()], [PinGroup(left, np.zeros(3))]))
     for _ in range(3):
         stats = sim.step()
         assert stats.converged and stats.newton_iterations <= 10
-        assert stats.residual < sim.newton.tol
+        assert stats.residual < sim.model.newton.tol
 
 
 def test_tight_tolerance_is_reachable():
@@ -123,7 +125,7 @@ def test_tight_tolerance_is_reachable():
     sim = tension_sheet("stvk")
     for _ in range(3):
         sim.step()
-    ip = sim.potential
+    ip = sim.model.potential
     free = ip.free_points
     d = np.random.default_rng(0).standard_normal((free.size, 3))
     C = sim.C.copy()
@@ -142,10 +144,10 @@ def test_pins_are_exact_and_move_for_their_duration():
     still = PinGroup(select(SHEET.shape, corners=("u0v0",)), np.zeros(3))
     moving = PinGroup(select(SHEET.shape, corners=("u1v1",)), np.array([0.3, -0.2, 0.5]), 0.0, 0.025)
     delayed = PinGroup(select(SHEET.shape, corners=("u0v1",)), np.array([0.0, 0.0, -1.0]), 0.015, 1.0)
-    sim = Simulator([SHEET], [Material()], [still, moving, delayed], dt=dt)
+    sim = Simulator(bspline_model([SHEET], [Material()], [still, moving, delayed], dt=dt))
     W = SHEET.world.reshape(-1, 3)
-    free = ~sim.pinned
-    assert sim.pinned.sum() == 3
+    free = ~sim.model.pinned
+    assert sim.model.pinned.sum() == 3
     for k in range(1, 6):
         before = sim.C.copy()
         stats = sim.step()
@@ -153,7 +155,7 @@ def test_pins_are_exact_and_move_for_their_duration():
         assert stats.converged
         # Exact: pinned points equal their targets bit for bit.
         targets = sim.pin_targets(sim.t)
-        assert np.array_equal(sim.C[sim.pinned], targets[sim.pinned])
+        assert np.array_equal(sim.C[sim.model.pinned], targets[sim.model.pinned])
         assert np.array_equal(sim.C[still.indices], W[still.indices])
         # Moving pins: velocity * (active time), clipped to [start, start + duration].
         expect = W[moving.indices] + moving.velocity * min(t, 0.025)
@@ -170,11 +172,11 @@ def test_pins_are_exact_and_move_for_their_duration():
 
 
 def test_simulator_mass_and_nodal_areas():
-    sim = Simulator([SHEET], [Material()])
+    sim = Simulator(bspline_model([SHEET], [Material()]))
     area = 0.3 * 0.3
-    assert sim.areas.sum() == pytest.approx(area, rel=1e-12)
-    assert sim.mass.sum() == pytest.approx(Material().areal_density * area, rel=1e-12)
-    assert np.all(sim.mass > 0)
+    assert sim.model.areas.sum() == pytest.approx(area, rel=1e-12)
+    assert sim.model.mass.sum() == pytest.approx(Material().areal_density * area, rel=1e-12)
+    assert np.all(sim.model.mass > 0)
     # A free fall step with no pins: every point falls by g dt^2 (implicit Euler, from rest),
     # since elastic forces vanish on a rigid translation.
     stats = sim.step()
@@ -220,8 +222,8 @@ def test_quasistatic_plate_converges_in_two_iterations():
     mat = Material(E_st=1e-6, E_sh=5e-9, E_bd=E, nu=nu, h=h, rho=1.0)
     p = plate(12)
     pins = [PinGroup(select(p.shape, sides=("u0", "u1", "v0", "v1")), np.zeros(3))]
-    sim = Simulator([p], [mat], pins, gravity=(0.0, 0.0, 0.0), pressure=q, mode="quasistatic",
-                    newton=NewtonOptions(tol=1e-6, record_gradients=True))
+    sim = Simulator(bspline_model([p], [mat], pins, gravity=(0.0, 0.0, 0.0), pressure=q, mode="quasistatic",
+                    newton=NewtonOptions(tol=1e-6, record_gradients=True)))
     stats = sim.step()
     assert stats.converged and stats.newton_iterations <= 2
     G = stats.extra["gradient_norms"]
@@ -347,14 +349,14 @@ def _longest_ccd_move(max_speed: float) -> tuple[float, int]:
     longest move handed to CCD in the first Newton iteration, and the capped iterations."""
     from garment.scene import loads_scene
 
-    sim = Simulator.from_scene(loads_scene(SLIDING), NewtonOptions(max_speed=max_speed))
-    moves, ccd = [0.0], sim.potential.max_step
+    sim = build_simulator(loads_scene(SLIDING), NewtonOptions(max_speed=max_speed))
+    moves, ccd = [0.0], sim.model.potential.max_step
 
     def max_step(C0, C1, B1=None):
         moves.append(float(np.abs(C1 - C0).max()))
         return ccd(C0, C1, B1)
 
-    sim.potential.max_step = max_step
+    sim.model.potential.max_step = max_step
     st = sim.step()
     return max(moves), st.extra.get("capped_steps", 0)
 

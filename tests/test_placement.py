@@ -12,10 +12,10 @@ import pytest
 
 from conform.lift import lift
 from conform.pipeline import ConformOptions, conform_panel
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.io.garments import load_garment
 from garment.io.obstacles import ObstacleGeometry
-from garment.model import Panel
+from sim.patches import Panel
 from garment.scene import GarmentSpec, PlacementSpec, parse_scene
 from sim.embedding import interpolation_matrix
 

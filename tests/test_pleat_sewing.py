@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from garment.scene import parse_scene
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from tests.intersections import garment_intersections
 
 DX, DZ = 0.005, 0.02  # grid spacing along and across the pleated edge
@@ -67,16 +67,16 @@ def _scene(tmp_path, face, **garment):
         "contact": {"dhat": 1e-3, "kappa": "adaptive", "mu": 0.0},
         "time": {"dt": 0.01, "frames": 30},
     }
-    return Simulator.from_scene(parse_scene(doc, tmp_path / "pleat.toml"))
+    return build_simulator(parse_scene(doc, tmp_path / "pleat.toml"))
 
 
 @pytest.mark.parametrize("face", ["last", pytest.param("first", marks=pytest.mark.slow)])
 def test_a_folded_knife_pleat_sews_shut_with_its_layers_in_order(tmp_path, face):
     sim = _scene(tmp_path, face)
-    assert [p.name for p in sim.pieces] == ["g.skirt", "g.band"]
+    assert [p.name for p in sim.model.pieces] == ["g.skirt", "g.band"]
     for step in range(30):
         sim.step()
-        x, _, cloth_pairs = garment_intersections(sim.pieces, sim.C, np.zeros((0, 3)), np.zeros((0, 3), int))
+        x, _, cloth_pairs = garment_intersections(sim.model.pieces, sim.C, np.zeros((0, 3)), np.zeros((0, 3), int))
         assert np.all(np.isfinite(x)), step
         assert cloth_pairs == 0, f"cloth-cloth intersection, step {step}: {cloth_pairs} pairs"
     # No layer between a seam's two sides: no matched pair held open (from the flat
@@ -90,31 +90,31 @@ def test_a_folded_knife_pleat_sews_shut_with_its_layers_in_order(tmp_path, face)
 
 def test_the_band_waits_on_the_pleat_until_its_tucks_close(tmp_path):
     """`pleat_wait`: the band's samples on the pleat's face (seam3's, not the rest of
-    it) carry no force until both tucks are within Simulator.PLEAT_WAIT; then they pull
+    it) carry no force until both tucks are within SewingOptions.pleat_wait_gap; then they pull
     for good, and a checkpoint keeps that."""
-    from sim.checkpoint import capture, restore
 
-    assert all(not s.after for s in _scene(tmp_path, "last").seams)  # off by default
+
+    assert all(not s.after for s in _scene(tmp_path, "last").model.seams)  # off by default
     sim = _scene(tmp_path, "last", pleat_wait=True)
-    assert [tuple(sorted(s.after)) for s in sim.seams] == [(), (), (), (0, 1)]
-    ((on_pleat, tucks),) = sim._faces
-    start = sum(len(s.uv_a) for s in sim.seams[:3])
-    assert np.all((on_pleat >= start) & (on_pleat < start + len(sim.seams[3].uv_a)))
-    assert 2 <= len(on_pleat) <= len(sim.seams[3].uv_a) // 2  # the face, 2 of the band's 26 cm
-    before = sim.seam.samples.gaps(sim.C)
-    assert max(before[t].max() for t in tucks) > sim.PLEAT_WAIT
+    assert [tuple(sorted(s.after)) for s in sim.model.seams] == [(), (), (), (0, 1)]
+    ((on_pleat, tucks),) = sim.model.sewing.faces
+    start = sum(len(s.uv_a) for s in sim.model.seams[:3])
+    assert np.all((on_pleat >= start) & (on_pleat < start + len(sim.model.seams[3].uv_a)))
+    assert 2 <= len(on_pleat) <= len(sim.model.seams[3].uv_a) // 2  # the face, 2 of the band's 26 cm
+    before = sim.model.seam.samples.gaps(sim.C)
+    assert max(before[t].max() for t in tucks) > sim.model.sewing.options.pleat_wait_gap
     sim.step()
-    assert not sim.seam.active[on_pleat].any() and sim.seam.active[start:on_pleat[0]].all()
-    state = capture(sim)
+    assert not sim.model.seam.active[on_pleat].any() and sim.model.seam.active[start:on_pleat[0]].all()
+    state = sim.state.copy()
     for _ in range(10):
-        if sim.faces_released.all():
+        if sim.state.pleat_faces.all():
             break
         sim.step()
-    assert sim.faces_released.all() and sim.seam.active[on_pleat].all()
-    gaps = sim.seam.samples.gaps(sim.C)
-    assert max(gaps[t].max() for t in tucks) <= sim.PLEAT_WAIT * 1.5
-    released = capture(sim)
-    restore(sim, state)
-    assert not sim.faces_released.any()
-    restore(sim, released)
-    assert sim.faces_released.all()
+    assert sim.state.pleat_faces.all() and sim.model.seam.active[on_pleat].all()
+    gaps = sim.model.seam.samples.gaps(sim.C)
+    assert max(gaps[t].max() for t in tucks) <= sim.model.sewing.options.pleat_wait_gap * 1.5
+    released = sim.state.copy()
+    sim.state = state
+    assert not sim.state.pleat_faces.any()
+    sim.state = released
+    assert sim.state.pleat_faces.all()

@@ -11,10 +11,11 @@ import conform.pleats as pleats
 from conform import ConformOptions
 from conform.pipeline import conform_all
 from garment.cli import main
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset
-from garment.model import Panel, PanelSeam
+from sim.patches import Panel
+from sim.seams.spec import PanelSeam
 from garment.scene import load_scene, parse_scene
 from tests.test_conform import polygon_panel
 from tests.test_pleat_sewing import _pleated

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from garment.model import Patch
+from sim.patches import Patch
 from sim.bspline import basis_matrix
 from sim.quadrature import gauss, membrane_rule, reduced_membrane, span_centres
 from sim.rest import point_data

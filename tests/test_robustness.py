@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -13,12 +14,14 @@ import numpy as np
 import pytest
 
 from garment.cli import main
-from garment.errors import SimulationError
+from sim.errors import SimulationError
 from garment.io import read_frame
 from garment.scene import loads_scene
-from sim.checkpoint import capture, read_checkpoint, restore, scene_hash, write_checkpoint
+from sim.checkpoint import read_checkpoint, write_checkpoint
+from sim.state import State
 from sim.driver import CheckpointPolicy, drive
 from sim.recovery import SplitWarning, StepFailure, step_with_recovery
+from garment.build import build_simulator, scene_hash
 from sim.simulator import Simulator
 from viz.recording import load_recording
 
@@ -56,39 +59,43 @@ def test_resume_repeats_the_uninterrupted_run(tmp_path, one_ipc_thread):
     """Contact with friction, adaptive kappa and a spinning body: N frames straight vs
     N/2, checkpoint, a fresh simulator restored from the file, N/2 more."""
     scene = loads_scene(CONTACT)
-    straight = Simulator.from_scene(scene)
+    straight = build_simulator(scene)
     result = drive(straight, 10, 2)
     assert max(s.extra.get("contact_count", 0) for s in result.stats) > 0  # the state includes contact
-    reference = Simulator.from_scene(scene)
+    reference = build_simulator(scene)
     reference.run(10, 2)
     assert np.array_equal(straight.C, reference.C)  # the driver steps exactly like Simulator.run
 
     path = tmp_path / "run.ckpt.npz"
-    first = Simulator.from_scene(scene)
+    first = build_simulator(scene)
     drive(first, 5, 2, checkpoint=CheckpointPolicy(path, 0, scene_hash(scene)))
     ck = read_checkpoint(path)
     assert ck.frame == 5 and ck.scene_hash == scene_hash(scene)
-    resumed = Simulator.from_scene(scene)
+    resumed = build_simulator(scene)
     drive(resumed, 10, 2, resume=ck)
     assert np.abs(resumed.C - straight.C).max() == 0.0
     assert np.abs(resumed.V - straight.V).max() == 0.0
-    assert resumed.t == straight.t and resumed.barrier.kappa == straight.barrier.kappa
+    assert resumed.t == straight.t and resumed.model.barrier.kappa == straight.model.barrier.kappa
     np.testing.assert_array_equal(resumed.obstacle_positions()["ball"], straight.obstacle_positions()["ball"])
     assert not list(tmp_path.glob(".*tmp"))
 
 
 def test_checkpoint_round_trip(tmp_path):
     scene = loads_scene(CONTACT)
-    sim = Simulator.from_scene(scene)
+    sim = build_simulator(scene)
     drive(sim, 1, 2)
-    sim.potential.projection_backoff = (3, 8)
-    path = write_checkpoint(tmp_path / "c.npz", sim, 1, "abc")
+    sim.state.projection_backoff = (3, 8)
+    path = write_checkpoint(tmp_path / "c.npz", sim.state, 1, "abc")
     ck = read_checkpoint(path)
-    s = capture(sim)
-    for name in ("C", "V", "obstacle_vertices", "drive_target"):
-        np.testing.assert_array_equal(getattr(ck.state, name), getattr(s, name))
-    for name in ("t", "step_count", "dt", "kappa", "stiffness_floor", "stiffness_prev_d", "projection_backoff"):
-        assert getattr(ck.state, name) == getattr(s, name), name
+    # Save state, load state: every field comes back, with its type.
+    for f in dataclasses.fields(State):
+        saved, loaded = getattr(sim.state, f.name), getattr(ck.state, f.name)
+        if isinstance(saved, np.ndarray):
+            assert loaded.dtype == saved.dtype, f.name
+            np.testing.assert_array_equal(loaded, saved)
+        else:
+            assert loaded == saved and type(loaded) is type(saved), f.name
+    assert sim.state.kappa is not None and sim.state.obstacle_vertices is not None  # contact state included
     assert (ck.frame, ck.scene_hash) == (1, "abc")
     # A different scene (even one number) has a different hash; frame count and outputs do not count.
     assert scene_hash(loads_scene(CONTACT.replace("mu = 0.3", "mu = 0.2"))) != scene_hash(scene)
@@ -111,7 +118,7 @@ def failing_above(sim, dt_max):
 
 def test_a_failing_step_is_split_in_halves():
     scene = loads_scene(SCENE)
-    sim, ref = Simulator.from_scene(scene), Simulator.from_scene(scene)
+    sim, ref = build_simulator(scene), build_simulator(scene)
     failing_above(sim, 0.005)
     with pytest.warns(SplitWarning, match="retrying as two steps of 0.005 s"):
         stats = step_with_recovery(sim)
@@ -130,7 +137,7 @@ def test_a_failing_step_is_split_in_halves():
 
 def test_failure_at_the_floor_names_frame_and_cause_and_keeps_a_checkpoint(tmp_path):
     scene = loads_scene(SCENE)
-    sim = Simulator.from_scene(scene)
+    sim = build_simulator(scene)
     step = sim.step
 
     def explode():  # from the third step on the solve returns NaN
@@ -174,7 +181,7 @@ def test_cli_failure_exits_3_with_valid_outputs(tmp_path, capsys, monkeypatch):
 
 def test_stop_request_discards_the_partial_frame(tmp_path):
     scene = loads_scene(SCENE)
-    sim, ref = Simulator.from_scene(scene), Simulator.from_scene(scene)
+    sim, ref = build_simulator(scene), build_simulator(scene)
     calls = []
 
     def stop():  # asked during the second step of frame 2
@@ -188,7 +195,7 @@ def test_stop_request_discards_the_partial_frame(tmp_path):
     assert np.array_equal(sim.C, ref.C) and sim.step_count == 2
     ck = read_checkpoint(path)
     assert ck.frame == 1 and np.array_equal(ck.state.C, ref.C)
-    restore(sim, ck.state)  # restoring is idempotent
+    sim.state = ck.state  # restoring is idempotent
     assert np.array_equal(sim.C, ref.C)
 
 
@@ -231,7 +238,7 @@ def test_sigint_stops_cleanly_and_resume_finishes_the_run(tmp_path, capsys):
     assert main(["simulate", str(scene), "-o", str(rrd), "--mesh-dir", str(frames), "--resume",
                  "--frames", str(end), "-q"]) == 0
     assert load_recording(tmp_path / "run.part2.rrd").frames == list(range(last, end + 1))
-    sim = Simulator.from_scene(loads_scene(LONG))
+    sim = build_simulator(loads_scene(LONG))
     sim.run(end, 1)
     verts, _ = read_frame(frames / f"sheet_{end:05d}.npz")
     assert np.abs(verts - sim.positions("sheet")).max() <= 1e-12
@@ -249,7 +256,7 @@ def test_second_signal_exits_at_once(tmp_path):
 def test_periodic_checkpoints_and_nothing_left_to_do(tmp_path, capsys):
     scene = loads_scene(SCENE)
     path = tmp_path / "run.ckpt.npz"
-    result = drive(Simulator.from_scene(scene), 4, 2, checkpoint=CheckpointPolicy(path, 2, "h"))
+    result = drive(build_simulator(scene), 4, 2, checkpoint=CheckpointPolicy(path, 2, "h"))
     assert result.checkpoints == 2 and read_checkpoint(path).frame == 4  # after frame 2, and at the end
     toml = tmp_path / "s.toml"
     toml.write_text(SCENE)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import garment.scene as scene_module
-from garment.materials import PRESETS, Material
+from garment.build import build_simulator
+from sim.materials import PRESETS, Material
 from garment.scene import (
     ClothSpec,
     LoadSpec,
@@ -444,9 +445,9 @@ def test_newton_extrapolate_reaches_the_solver(tmp_path):
     from sim.simulator import Simulator
 
     scene = load_scene(write(tmp_path, CLOTH + "[time]\nnewton_extrapolate = 3\nnewton_tol = 0.02\n"))
-    opts = Simulator.from_scene(scene).newton
+    opts = build_simulator(scene).model.newton
     assert (opts.extrapolate, opts.tol) == (3, 0.02)
-    assert Simulator.from_scene(load_scene(write(tmp_path, CLOTH, "plain.toml"))).newton.extrapolate == 0
+    assert build_simulator(load_scene(write(tmp_path, CLOTH, "plain.toml"))).model.newton.extrapolate == 0
 
 
 def test_material_default_is_cotton():

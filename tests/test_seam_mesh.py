@@ -1,4 +1,4 @@
-"""Seamed piece meshes (sim/seam_mesh.py): the uv rectangle tiled exactly, matched seam
+"""Seamed piece meshes (sim/seams/mesh.py): the uv rectangle tiled exactly, matched seam
 vertices on both sides, and the contact mesh sewn shut once the seams close."""
 
 from __future__ import annotations
@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from garment.scene import ContactSpec
-from sim.seam_mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
+from sim.model import ContactOptions
+from sim.seams.mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
 from tests.intersections import intersecting_triangles, shared_vertices, stacked_cloth
 from tests.test_seams import _two_panels
 
@@ -97,31 +97,31 @@ def test_matched_points_keep_corners_and_pair_both_sides():
 def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
     sim = _two_panels(0.03)
     merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(6)]
-    n = len(sim.seam_contact.pairs)
-    assert merged == [0, n, 0, 0, 0, 0] and (sim.seam_contact.state == 1).all()  # shut once all are within d_hat
+    n = len(sim.model.seam_contact.pairs)
+    assert merged == [0, n, 0, 0, 0, 0] and (sim.model.seam_contact.state == 1).all()  # shut once all are within d_hat
     # Matched vertices now are one contact vertex and export the same position bit for bit.
-    W, F, _ = stacked_cloth(sim.pieces)
+    W, F, _ = stacked_cloth(sim.model.pieces)
     x = W @ sim.C
-    a, b = sim.seam_contact.pairs.T
+    a, b = sim.model.seam_contact.pairs.T
     assert np.array_equal(x[a], x[b])
-    assert sim.barrier.contact.n_cloth == len(x) - len(a)
+    assert sim.model.barrier.contact.n_cloth == len(x) - len(a)
     # No barrier between stitched neighbours, none needed anywhere else, nothing crosses.
     st = sim.step()
     assert st.extra["contact_count"] == 0
     assert len(intersecting_triangles(*shared_vertices(x, F))) == 0
-    assert sim.seam.samples.gaps(sim.C).max() < 1e-5
+    assert sim.model.seam.samples.gaps(sim.C).max() < 1e-5
 
 
 def test_resume_after_the_seams_merged(tmp_path):
-    from sim.checkpoint import read_checkpoint, restore, write_checkpoint
+    from sim.checkpoint import read_checkpoint, write_checkpoint
 
     sim = _two_panels(0.03)
     for _ in range(3):
         sim.step()
-    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim, 3, "sewn"))
+    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 3, "sewn"))
     resumed = _two_panels(0.03)
-    restore(resumed, ck.state)
-    assert (resumed.seam_contact.state == 1).all()
+    resumed.state = ck.state
+    assert (resumed.model.seam_contact.state == 1).all()
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)
@@ -129,23 +129,23 @@ def test_resume_after_the_seams_merged(tmp_path):
 
 def test_band_seams_keep_grids_and_exclude_pairs_near_the_seam():
     merged = _two_panels(0.03)
-    band = _two_panels(0.03, contact=ContactSpec(enabled=True, adaptive_kappa=True, seams="band"))
-    assert len(band.seam_contact.pairs) == 0 and band.seam_contact.excluded
-    assert [len(p.topology.faces) for p in band.pieces] == [2 * 10 * 10] * 2  # the plain 11 x 11 grids
-    assert len(merged.seam_contact.pairs) > 0 and not merged.seam_contact.excluded
+    band = _two_panels(0.03, contact=ContactOptions(adaptive_kappa=True, seams="band"))
+    assert len(band.model.seam_contact.pairs) == 0 and band.model.seam_contact.excluded
+    assert [len(p.topology.faces) for p in band.model.pieces] == [2 * 10 * 10] * 2  # the plain 11 x 11 grids
+    assert len(merged.model.seam_contact.pairs) > 0 and not merged.model.seam_contact.excluded
 
 
 @pytest.mark.parametrize("keep", [False, True])
 def test_crossings_away_from_the_merged_pairs_stop_only_a_fresh_state_sewing(monkeypatch, keep):
     # A state handed over from a coarser run (keep_crossings) may carry crossings that no
     # merge made; they must not stop its seams from sewing, as they must for a fresh run.
-    import sim.contact.seams as seams_mod
+    import sim.seams.contact as seams_mod
 
     sim = _two_panels(0.03)
-    sim.seam_contact.keep_crossings = keep
+    sim.model.seam_contact.keep_crossings = keep
     monkeypatch.setattr(seams_mod.ipctk, "has_intersections", lambda mesh, x: True)
     monkeypatch.setattr(seams_mod, "crossings_at", lambda *args: np.zeros(0, np.int64))
     merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(3)]
-    n = len(sim.seam_contact.pairs)
+    n = len(sim.model.seam_contact.pairs)
     assert merged == ([0, n, 0] if keep else [0, 0, 0])
-    assert (sim.seam_contact.state == 1).all() == keep
+    assert (sim.model.seam_contact.state == 1).all() == keep

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from garment.materials import PRESETS
-from garment.model import Patch
-from garment.scene import ContactSpec
-from sim.seams import SeamSpec
+from sim.materials import PRESETS
+from sim.patches import Patch
+from sim.model import ContactOptions, bspline_model
+from sim.seams.spec import SeamSpec
+from sim.seams.sewing import SewingOptions
 from sim.simulator import Simulator
 from tests.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
 from tests.test_energies import fd_gradient
@@ -21,32 +22,32 @@ def _two_panels(gap: float, stiffness: float = 1e6, contact=None) -> Simulator:
     b = Patch.rectangle("b", (0.2, 0.2), (N, N), (gap / 2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
     t = np.linspace(0.0, N - 2.0, 30)
     seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), t])
-    return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
-                     contact=contact or ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam],
-                     seam_stiffness=stiffness)
+    return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
+                     contact=contact or ContactOptions(adaptive_kappa=True), seams=[seam],
+                     seam_stiffness=stiffness))
 
 
 def test_seam_energy_is_the_gap_squared():
     sim = _two_panels(0.02)
-    gaps = sim.seam.samples.gaps(sim.C)
+    gaps = sim.model.seam.samples.gaps(sim.C)
     np.testing.assert_allclose(gaps, 0.02, rtol=1e-12)  # straight edges 2 cm apart
-    w = sim.seam.samples.weights
+    w = sim.model.seam.samples.weights
     assert abs(w.sum() - 0.2) < 1e-12  # 0.2 m of seam
-    assert abs(sim.seam.value(sim.C) - 0.5 * 1e6 * 0.2 * 0.02**2) < 1e-9
+    assert abs(sim.model.seam.value(sim.C) - 0.5 * 1e6 * 0.2 * 0.02**2) < 1e-9
 
 
 def test_open_seam_closes_and_stays_closed_without_barriers():
     sim = _two_panels(0.03)
-    fa, fb = sim.pieces[0].topology.faces, sim.pieces[1].topology.faces
+    fa, fb = sim.model.pieces[0].topology.faces, sim.model.pieces[1].topology.faces
     for _ in range(15):
         st = sim.step()
         xa, xb = sim.positions("a"), sim.positions("b")
         assert intersecting_pairs(xa, fa, xb, fb) == 0
         assert intersecting_pairs(xa, fa) == 0 and intersecting_pairs(xb, fb) == 0
     # Closed to well under 1 mm, and the touching seam edges make no contact at all.
-    assert sim.seam.samples.gaps(sim.C).max() < 1e-4
+    assert sim.model.seam.samples.gaps(sim.C).max() < 1e-4
     assert st.extra["contact_count"] == 0
-    assert st.extra["seam_gap_max"] == sim.seam.samples.gaps(sim.C).max()  # reported per step
+    assert st.extra["seam_gap_max"] == sim.model.seam.samples.gaps(sim.C).max()  # reported per step
     assert st.converged
 
 
@@ -55,17 +56,17 @@ def _ramped(quasistatic: bool, stiffness: float = 1e6) -> Simulator:
     b = Patch.rectangle("b", (0.2, 0.2), (N, N), (0.015, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
     t = np.linspace(0.0, N - 2.0, 30)
     seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), t])
-    return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
-                     seams=[seam], seam_stiffness=stiffness, seam_ramp=0.05, quasistatic_sewing=quasistatic)
+    return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
+                     seams=[seam], seam_stiffness=stiffness, sewing=SewingOptions(ramp=0.05, quasistatic=quasistatic)))
 
 
 def test_seam_ramp_starts_at_an_absolute_stiffness_and_ends_at_the_seams():
     for k in (1e6, 1e7):
         sim = _ramped(False, k)
-        start = Simulator.SEAM_RAMP_START
+        start = SewingOptions.ramp_start
         for t in (0.0, 0.025, 0.05, 0.08):
             expected = start * (k / start) ** min(t / 0.05, 1.0)  # geometric from start to k
-            assert abs(sim._seam_scale(t) * k / expected - 1.0) < 1e-12, (k, t)
+            assert abs(sim.model.sewing.scale(t) * k / expected - 1.0) < 1e-12, (k, t)
 
 
 def test_quasistatic_sewing_drops_velocities_only_while_the_seams_ramp():
@@ -73,7 +74,7 @@ def test_quasistatic_sewing_drops_velocities_only_while_the_seams_ramp():
     for _ in range(5):  # t = 0.01 .. 0.05: the sewing steps
         sim.step()
         assert sim.t > 0.05 - 1e-12 or not sim.V.any()
-    assert sim.seam.samples.gaps(sim.C).max() < 1e-3  # 3 cm closed while being pulled, not thrown
+    assert sim.model.seam.samples.gaps(sim.C).max() < 1e-3  # 3 cm closed while being pulled, not thrown
     sim.step()
     assert np.abs(sim.V[:, 2]).min() > 0.05  # then free fall keeps its momentum again
     dynamic = _ramped(False)
@@ -84,7 +85,7 @@ def test_quasistatic_sewing_drops_velocities_only_while_the_seams_ramp():
 def test_scene_sewing_mode_is_checked():
     import pytest
 
-    from garment.errors import InputError
+    from sim.errors import InputError
     from garment.scene import parse_scene
 
     cloth = {"cloth": [{"size": [0.2, 0.2], "control_points": [5, 5]}]}
@@ -96,7 +97,7 @@ def test_scene_sewing_mode_is_checked():
 
 def test_seam_multipliers_derivatives_match_finite_differences():
     sim = _two_panels(0.02)
-    seam = sim.seam
+    seam = sim.model.seam
     rng = np.random.default_rng(3)
     seam.multipliers = rng.normal(scale=50.0, size=seam.multipliers.shape)  # N/m
     C = sim.C + rng.normal(scale=1e-3, size=sim.C.shape)
@@ -122,8 +123,8 @@ def _eased(multipliers: bool) -> Simulator:
     b = Patch.rectangle("b", (0.2, 0.2), (N, N), (0.0, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
     t = np.linspace(0.0, N - 2.0, 30)
     seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), 0.8 * t])
-    return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, 0.0), dt=0.01,
-                     seams=[seam], seam_stiffness=1e5, seam_multipliers=multipliers)
+    return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, 0.0), dt=0.01,
+                     seams=[seam], seam_stiffness=1e5, sewing=SewingOptions(multipliers=multipliers)))
 
 
 def _late_gaps(sim: Simulator) -> list[float]:
@@ -133,7 +134,7 @@ def _late_gaps(sim: Simulator) -> list[float]:
     out = []
     for _ in range(10):
         assert sim.step().converged
-        out.append(sim.seam.samples.gaps(sim.C).max())
+        out.append(sim.model.seam.samples.gaps(sim.C).max())
     return out
 
 
@@ -144,27 +145,27 @@ def test_multipliers_close_an_eased_seam_that_a_penalty_leaves_open():
     # the gap falls towards zero (measured: 10-40 um, the compressed cloth's jitter).
     assert min(open_) > 5e-4
     assert max(closed) < 0.1 * min(open_)
-    assert np.abs(penalty.seam.multipliers).max() == 0.0
+    assert np.abs(penalty.model.seam.multipliers).max() == 0.0
 
 
 def test_checkpoint_carries_the_multipliers(tmp_path):
-    from sim.checkpoint import read_checkpoint, restore, write_checkpoint
+    from sim.checkpoint import read_checkpoint, write_checkpoint
 
     sim = _eased(True)
     for _ in range(3):
         sim.step()
-    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim, 3, "eased"))
+    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 3, "eased"))
     resumed = _eased(True)
-    restore(resumed, ck.state)
-    np.testing.assert_array_equal(resumed.seam.multipliers, sim.seam.multipliers)
-    assert np.abs(sim.seam.multipliers).max() > 0.0
+    resumed.state = ck.state
+    np.testing.assert_array_equal(resumed.model.seam.multipliers, sim.model.seam.multipliers)
+    assert np.abs(sim.model.seam.multipliers).max() > 0.0
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
 
 
 def test_multipliers_grow_only_while_the_gap_shrinks_by_at_most_twice_what_the_cloth_carries():
-    seam = _two_panels(0.02).seam
+    seam = _two_panels(0.02).model.seam
     C = _two_panels(0.02).C
     cotton = PRESETS["cotton"]
     cap = 2.0 * cotton.E_st * cotton.h  # 1272 N/m
@@ -176,7 +177,7 @@ def test_multipliers_grow_only_while_the_gap_shrinks_by_at_most_twice_what_the_c
     seam.update_multipliers(closer)
     np.testing.assert_allclose(np.linalg.norm(seam.multipliers, axis=1), 2.0 * cap, rtol=1e-12)
 
-    seam = _two_panels(0.02).seam
+    seam = _two_panels(0.02).model.seam
     seam.max_step = np.full_like(seam.max_step, np.inf)
     seam.update_multipliers(C)  # first update: 2 cm gaps, k g = 1e6 x 0.02 = 2e4 N/m
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4, rtol=1e-9)
@@ -198,46 +199,46 @@ def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
     layer = Patch.rectangle("layer", (0.2, 0.095), (N, N), (0.05, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
     t = np.linspace(0.0, N - 2.0, 30)
     seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.full(30, N - 2.0), t])
-    return Simulator([a, b, layer], [PRESETS["cotton"]] * 3, gravity=(0.0, 0.0, 0.0), dt=0.01,
-                     contact=ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam], seam_stiffness=1e6)
+    return Simulator(bspline_model([a, b, layer], [PRESETS["cotton"]] * 3, gravity=(0.0, 0.0, 0.0), dt=0.01,
+                     contact=ContactOptions(adaptive_kappa=True), seams=[seam], seam_stiffness=1e6))
 
 
 def test_a_seam_blocked_by_a_layer_pulls_weakly_there_and_fully_again_once_it_is_gone():
     sim = _seam_over_a_layer()
-    W, F, _ = stacked_cloth(sim.pieces)
-    y_pair = (sim.seam_contact.W_own @ sim.C0)[sim.seam_contact.pairs[:, 0], 1]
-    y_sample = (sim.seam.samples.Na @ sim.C0)[:, 1]
+    W, F, _ = stacked_cloth(sim.model.pieces)
+    y_pair = (sim.model.seam_contact.W_own @ sim.model.C0)[sim.model.seam_contact.pairs[:, 0], 1]
+    y_sample = (sim.model.seam.samples.Na @ sim.model.C0)[:, 1]
 
     def step():
         st = sim.step()
         assert st.converged
-        x = np.concatenate([p.W @ sim.C for p in sim.pieces])
+        x = np.concatenate([p.W @ sim.C for p in sim.model.pieces])
         assert len(intersecting_triangles(*shared_vertices(x, F))) == 0  # nothing passes through the layer
         return st
 
     for _ in range(8):
         st = step()
     over, clear = y_pair < -0.02, y_pair > 0.02
-    state = sim.seam_contact.state
+    state = sim.model.seam_contact.state
     assert st.extra["seam_pairs_blocked"] == np.count_nonzero(state == 3) >= np.count_nonzero(over) > 0
     assert (state[over] == 3).all() and (state[clear] == 1).all()
-    assert not sim.seam.active[y_sample < -0.02].any() and sim.seam.active[y_sample > 0.02].all()
-    assert sim.seam.held[y_sample < -0.02].all() and not sim.seam.held[y_sample > 0.02].any()
-    np.testing.assert_array_equal(sim.seam.multipliers[~sim.seam.active], 0.0)
-    gaps = sim.seam.samples.gaps(sim.C)
+    assert not sim.model.seam.active[y_sample < -0.02].any() and sim.model.seam.active[y_sample > 0.02].all()
+    assert sim.model.seam.held[y_sample < -0.02].all() and not sim.model.seam.held[y_sample > 0.02].any()
+    np.testing.assert_array_equal(sim.model.seam.multipliers[~sim.model.seam.active], 0.0)
+    gaps = sim.model.seam.samples.gaps(sim.C)
     assert gaps[y_sample > 0.02].max() < 1e-4
     # Over the layer only the weak pull (SeamEnergy.HELD) presses the sides onto it: the
     # closest contact stays tens of micrometres, not nanometres (58 um measured).
-    assert sim.barrier.min_distance(sim.C) > 0.02 * sim.barrier.dhat
+    assert sim.model.barrier.min_distance(sim.C) > 0.02 * sim.model.barrier.dhat
     # The layer slides out from between the sheets (in its own plane, clear of both): the
     # whole seam pulls again and closes.
-    layer = sim.pieces[2].slice
+    layer = sim.model.pieces[2].slice
     sim.C[layer, 1] -= 0.2
     sim.V[layer] = 0.0
     for _ in range(8):
         st = step()
-    assert st.extra["seam_pairs_blocked"] == 0 and sim.seam.active.all()
-    assert (sim.seam_contact.state == 1).all() and sim.seam.samples.gaps(sim.C).max() < 1e-3
+    assert st.extra["seam_pairs_blocked"] == 0 and sim.model.seam.active.all()
+    assert (sim.model.seam_contact.state == 1).all() and sim.model.seam.samples.gaps(sim.C).max() < 1e-3
 
 
 def test_seam_gaps_are_reported_per_seam_at_the_end_of_a_run(capsys):

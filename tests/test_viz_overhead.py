@@ -1,5 +1,5 @@
-"""`garment bench viz-overhead` (viz/overhead.py) measures what Rerun logging costs next to
-the simulation; the figures live in that benchmark (README "Visualization"), not in a timed
+"""`garment bench viz-overhead` (garment/bench/viz_overhead.py) measures what Rerun logging costs next to
+the simulation; the figures live in that benchmark (docs/performance.md), not in a timed
 test. Here: a small run of it, its JSON and its arithmetic."""
 
 from __future__ import annotations

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from garment.cli import main
-from garment.errors import InputError
+from sim.errors import InputError
 from garment.scene import loads_scene
-from sim.simulator import Simulator
+from garment.build import build_simulator
 from sim.sinks import Frame
 from sim.stats import StepStats
 from viz.recording import export_mesh, load_recording
@@ -120,7 +120,7 @@ def test_simulate_inspect_round_trip(tmp_path, capsys):
 
     # The same run from Python, frames kept in memory.
     sc = loads_scene(SCENE)
-    sim = Simulator.from_scene(sc)
+    sim = build_simulator(sc)
     kept = FrameBuffer()
     sim.run(sc.time.frames, sc.time.steps_per_frame, [kept])
     want = np.stack([f[2]["sheet"] for f in kept.frames()])  # float32

@@ -27,7 +27,7 @@ import rerun as rr
 from rerun.chunk import RrdReader
 from rerun.error_utils import RerunWarning
 
-from garment.errors import InputError
+from sim.errors import InputError
 
 from .rerun_sink import BODIES, CLOTH, STATS
 

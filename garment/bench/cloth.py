@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 
-from sim.simulator import Simulator
+from garment.build import build_simulator
 
 from .common import scene, step_summary
 
@@ -21,7 +21,7 @@ def runner(name: str):
         cases = []
         for n in resolutions:
             start = time.perf_counter()
-            sim = Simulator.from_scene(scene(name, (n, n), quadrature))
+            sim = build_simulator(scene(name, (n, n), quadrature))
             build = time.perf_counter() - start
             stats = []
             for _ in range(steps or DEFAULT_STEPS):

@@ -29,8 +29,8 @@ from pathlib import Path
 
 
 from garment.scene import Perturbation
-from sim.linear import LinearSimulator
-from sim.simulator import Simulator
+from garment.build import build_linear_simulator
+from garment.build import build_simulator
 
 from . import compare_ablation, compare_locking, compare_plate, compare_plots
 from .common import scene as bundled_scene
@@ -75,8 +75,8 @@ def scene(name: str, control_points=None, quadrature=None):
 def _warm_up(name: str) -> None:
     """Load every JIT kernel the case uses, on a tiny version of it."""
     sc = scene(name, (8, 8))
-    Simulator.from_scene(sc).step()
-    LinearSimulator.from_scene(sc, 8).step()
+    build_simulator(sc).step()
+    build_linear_simulator(sc, 8).step()
 
 
 def pair(name: str, n: int, m: int, steps: int, quadrature=None, progress=None) -> dict:
@@ -84,8 +84,8 @@ def pair(name: str, n: int, m: int, steps: int, quadrature=None, progress=None) 
     _warm_up(name)
     row = {"case": name, "resolution": n, "linear_resolution": m, "steps": steps}
     sims = {}
-    for label, build, res in (("bspline", lambda: Simulator.from_scene(scene(name, (n, n), quadrature)), n),
-                              ("linear", lambda: LinearSimulator.from_scene(scene(name), m), m)):
+    for label, build, res in (("bspline", lambda: build_simulator(scene(name, (n, n), quadrature)), n),
+                              ("linear", lambda: build_linear_simulator(scene(name), m), m)):
         start = time.perf_counter()
         sim = build()
         row[f"build_seconds_{label}"] = time.perf_counter() - start

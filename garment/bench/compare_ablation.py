@@ -23,8 +23,9 @@ import scipy.sparse as sp
 
 from sim.assembly import add_scalar_matrix
 from sim.energies import BendingEnergy
-from sim.linear import LinearSimulator
+from garment.build import build_linear_simulator
 from sim.potential import IncrementalPotential
+from garment.build import build_simulator
 from sim.simulator import Simulator
 
 from .common import scene
@@ -56,18 +57,18 @@ class RebuiltBending(BendingEnergy):
 
 
 def _rebuild_bending(sim: Simulator, D: float) -> None:
-    for k, e in enumerate(sim.energies):
+    for k, e in enumerate(sim.model.energies):
         if type(e) is BendingEnergy:
-            sim.energies[k] = RebuiltBending(e.points, D + 0.0 * e.points.w, sim.n_cp)
-    sim.potential = IncrementalPotential(sim.energies, ~sim.pinned)
+            sim.model.energies[k] = RebuiltBending(e.points, D + 0.0 * e.points.w, sim.model.n_cp)
+    sim.model.potential = IncrementalPotential(sim.model.energies, ~sim.model.pinned)
 
 
 def build(variant: str, n: int):
     if variant == "E":
-        return LinearSimulator.from_scene(scene("hanging"), n)
-    sim = Simulator.from_scene(scene("hanging", (n, n), "gauss2" if variant == "A" else "reduced"))
+        return build_linear_simulator(scene("hanging"), n)
+    sim = build_simulator(scene("hanging", (n, n), "gauss2" if variant == "A" else "reduced"))
     if variant in ("A", "B"):
-        _rebuild_bending(sim, sim.pieces[0].material.bending_stiffness)
+        _rebuild_bending(sim, sim.model.pieces[0].material.bending_stiffness)
     return sim
 
 

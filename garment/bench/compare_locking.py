@@ -38,8 +38,8 @@ import numpy as np
 
 from garment.scene import PinSpec
 from sim.energies.membrane import MembraneEnergy
-from sim.linear import LinearSimulator
-from sim.simulator import Simulator
+from garment.build import build_linear_simulator
+from garment.build import build_simulator
 
 from .common import scene
 
@@ -75,15 +75,15 @@ def locking_scene(E: float, n: int, steps: int, corners=("u0v0", "u1v1"), shear_
 def force_residual(sim, g: float) -> float:
     """Largest |elastic + gravity force| on a free point over its weight m g (inertia excluded)."""
     grad = np.zeros_like(sim.C)
-    for e in sim.energies:
-        if e is not sim.inertia:
+    for e in sim.model.energies:
+        if e is not sim.model.inertia:
             e.add_gradient(sim.C, grad)
-    free = ~sim.pinned
-    return float((np.linalg.norm(grad[free], axis=1) / (sim.mass[free] * g)).max(initial=0.0))
+    free = ~sim.model.pinned
+    return float((np.linalg.norm(grad[free], axis=1) / (sim.model.mass[free] * g)).max(initial=0.0))
 
 
 def membrane_energy(sim) -> float:
-    return float(sum(e.value(sim.C) for e in sim.energies if isinstance(e, MembraneEnergy)))
+    return float(sum(e.value(sim.C) for e in sim.model.energies if isinstance(e, MembraneEnergy)))
 
 
 def relax(sim, name: str, z0: float, g: float, steps: int, progress=None) -> dict:
@@ -96,14 +96,14 @@ def relax(sim, name: str, z0: float, g: float, steps: int, progress=None) -> dic
     st = None
     for k in range(steps):
         sim.set_dt(dt)
-        sim.newton.tol = STEP_TOL / dt  # Newton's criterion is ||dC||_inf / dt < tol
+        sim.model.newton.tol = STEP_TOL / dt  # Newton's criterion is ||dC||_inf / dt < tol
         st = sim.step()
         iters += st.newton_iterations
         prev, sag = sag, float(z0 - sim.positions(name)[:, 2].min())
         speed = float(np.linalg.norm(sim.V, axis=1).max())
         calm = calm + 1 if (st.converged and speed < REST_SPEED and abs(sag - prev) < REST_SAG) else 0
         if progress is not None:
-            progress(sim.n_cp, st)
+            progress(sim.model.n_cp, st)
         if calm >= REST_STEPS:
             break
         dt = min(dt * DT_GROWTH, DT_MAX)
@@ -125,7 +125,7 @@ def run_one(kind: str, E: float, n: int, corners, shear_ratio: float, steps: int
             quadrature: str | None = None, progress=None):
     """One relaxed sheet: kind "bspline" or "linear". Returns (measurements, simulator)."""
     sc = locking_scene(E, n, steps, corners, shear_ratio, quadrature)
-    sim = Simulator.from_scene(sc) if kind == "bspline" else LinearSimulator.from_scene(sc, n)
+    sim = build_simulator(sc) if kind == "bspline" else build_linear_simulator(sc, n)
     z0 = sc.cloths[0].origin[2]
     g = float(np.linalg.norm(sc.load.gravity))
     out = relax(sim, sc.cloths[0].name, z0, g, steps, progress)

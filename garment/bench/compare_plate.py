@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from sim.linear import LinearSimulator
+from garment.build import build_linear_simulator
 
 from . import plate
 from .common import scene
@@ -28,12 +28,12 @@ def linear_solve(n: int, layout: str) -> dict:
     best = np.inf
     for _ in range(REPEATS):
         start = time.perf_counter()
-        sim = LinearSimulator.from_scene(sc, n, layout)
+        sim = build_linear_simulator(sc, n, layout)
         sim.step()
         best = min(best, time.perf_counter() - start)
-    mesh = sim.pieces[0].mesh
+    mesh = sim.model.pieces[0].mesh
     k, bary = mesh.locate((0.5 * cloth.size[0], 0.5 * cloth.size[1]))
-    w = abs(float(bary @ (sim.C - sim.C0)[mesh.faces[k]] @ np.asarray(sc.load.pressure_direction)))
+    w = abs(float(bary @ (sim.C - sim.model.C0)[mesh.faces[k]] @ np.asarray(sc.load.pressure_direction)))
     analytic = plate.navier_coefficient() * sc.load.pressure * cloth.size[0] ** 4 / cloth.material.bending_stiffness
     return {"case": "plate", "method": f"linear-{layout}", "resolution": n, "dofs": sim.n_dofs,
             "elements": int(mesh.faces.shape[0]), "rel_error": abs(w - analytic) / analytic, "seconds": best}

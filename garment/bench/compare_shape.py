@@ -31,16 +31,16 @@ FOLD_PROMINENCE = 2e-3  # m
 def bspline_at(sim, st: np.ndarray) -> np.ndarray:
     """(P, 3) points of the first cloth of a B-spline Simulator at material points st
     (P, 2); rectangle patches have an affine rest map, so u = s (n - 2)."""
-    piece = sim.pieces[0]
+    piece = sim.model.pieces[0]
     n, m = piece.patch.shape
-    W = interpolation_matrix(st[:, 0] * (n - 2), st[:, 1] * (m - 2), n, m, 0, sim.n_cp)
+    W = interpolation_matrix(st[:, 0] * (n - 2), st[:, 1] * (m - 2), n, m, 0, sim.model.n_cp)
     return W @ sim.C
 
 
 def linear_at(lin, st: np.ndarray) -> np.ndarray:
     """(P, 3) points of the first cloth of a LinearSimulator at material points st."""
-    mesh = lin.pieces[0].mesh
-    return LinearNDInterpolator(mesh.normalized, lin.C[lin.pieces[0].slice])(st)
+    mesh = lin.model.pieces[0].mesh
+    return LinearNDInterpolator(mesh.normalized, lin.C[lin.model.pieces[0].slice])(st)
 
 
 def max_dihedral_deg(positions: np.ndarray, faces: np.ndarray, rest: np.ndarray) -> float:
@@ -62,8 +62,8 @@ def folds(points: np.ndarray, normal: np.ndarray) -> int:
 
 def compare(bs, lin, normal: np.ndarray, line: str = "centre") -> dict:
     """Shape measures between B-spline `bs` and linear `lin` final states (one cloth each)."""
-    st = lin.pieces[0].mesh.normalized
-    Pb, Pl = bspline_at(bs, st), lin.C[lin.pieces[0].slice]
+    st = lin.model.pieces[0].mesh.normalized
+    Pb, Pl = bspline_at(bs, st), lin.C[lin.model.pieces[0].slice]
     d_bl = cKDTree(Pl).query(Pb)[0]
     d_lb = cKDTree(Pb).query(Pl)[0]
     same = np.linalg.norm(Pb - Pl, axis=1)
@@ -71,7 +71,7 @@ def compare(bs, lin, normal: np.ndarray, line: str = "centre") -> dict:
     # Stay a hair inside the sheet: the interpolator returns NaN on the hull boundary.
     t = 1e-6 + (1.0 - 2e-6) * t
     samples = np.c_[np.full_like(t, 0.5), t] if line == "centre" else np.c_[t, t]
-    b_top, l_top = bs.pieces[0].topology, lin.pieces[0].topology
+    b_top, l_top = bs.model.pieces[0].topology, lin.model.pieces[0].topology
     return {
         "hausdorff_mm": 1e3 * float(max(d_bl.max(), d_lb.max())),
         "material_rms_mm": 1e3 * float(np.sqrt(np.mean(same**2))),
@@ -79,5 +79,5 @@ def compare(bs, lin, normal: np.ndarray, line: str = "centre") -> dict:
         "folds_bspline": folds(bspline_at(bs, samples), normal),
         "folds_linear": folds(linear_at(lin, samples), normal),
         "max_dihedral_deg_bspline": max_dihedral_deg(bs.positions(b_top.name), b_top.faces, b_top.rest),
-        "max_dihedral_deg_linear": max_dihedral_deg(lin.C[lin.pieces[0].slice], l_top.faces, l_top.rest),
+        "max_dihedral_deg_linear": max_dihedral_deg(lin.C[lin.model.pieces[0].slice], l_top.faces, l_top.rest),
     }

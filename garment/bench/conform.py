@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg.norm)
 
-from garment.model import Panel
+from sim.patches import Panel
 from sim.bspline import basis_matrix
 from sim.quadrature import membrane_rule
 from sim.rest import point_data

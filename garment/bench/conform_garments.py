@@ -30,10 +30,10 @@ def panel_seconds(ps) -> dict[str, float]:
 
 def measure(name: str, span_mm: int) -> dict:
     from conform.pipeline import ConformOptions, conform_all
-    from garment.commands.conform import read_input
+    from garment.io.garments import read_pattern
 
     span = 1e-3 * span_mm
-    panels, seams = read_input(GARMENTS / CASES[name], span)
+    panels, seams = read_pattern(GARMENTS / CASES[name], span)
     start = time.perf_counter()
     ps = conform_all(panels, seams, ConformOptions(knot_span=span))
     total = time.perf_counter() - start

@@ -27,6 +27,7 @@ import scipy.sparse as sp
 
 from sim.assembly import add_dof_matrix
 from sim.contact.hessian_map import ContactHessianMap
+from garment.build import build_simulator
 from sim.simulator import Simulator
 
 from .common import scene
@@ -42,7 +43,7 @@ def draped(sim: Simulator) -> np.ndarray:
     to the ground, then flat), GAP above the obstacles. Over the convex cap the spline
     lies below its control net and the mesh's chords below the spline, so the cap radius
     is raised once by the measured vertex sag plus the chord sag L^2 / 8R."""
-    C0 = sim.C0
+    C0 = sim.model.C0
     centre, R = np.array([0.0, 0.0, 0.15]), 0.15
     r = np.hypot(C0[:, 0], C0[:, 1])
 
@@ -52,11 +53,11 @@ def draped(sim: Simulator) -> np.ndarray:
         return np.c_[C0[:, :2], np.maximum(z, 0.0) + GAP]
 
     def clearance(C):
-        x = sim.barrier.contact.W @ C
+        x = sim.model.barrier.contact.W @ C
         return (np.linalg.norm(x - centre, axis=1) - R).min()
 
-    faces = sim.barrier.contact.cloth_faces
-    x = sim.barrier.contact.W @ C0
+    faces = sim.model.barrier.contact.cloth_faces
+    x = sim.model.barrier.contact.W @ C0
     L = np.linalg.norm(x[faces] - x[np.roll(faces, 1, axis=1)], axis=2).max()
     target = GAP + L**2 / (8 * R)
     C = shape(R + target)
@@ -95,10 +96,10 @@ def triplets(W: sp.csr_matrix, free: np.ndarray, H: sp.spmatrix, n_cloth: int) -
 
 
 def case(n: int, repeat: int = 3) -> dict:
-    sim = Simulator.from_scene(scene("sphere", (n, n)))
-    e = sim.barrier
+    sim = build_simulator(scene("sphere", (n, n)))
+    e = sim.model.barrier
     mesh = e.contact
-    pattern = sim.potential.pattern
+    pattern = sim.model.potential.pattern
     C = draped(sim)
     x = mesh.vertices(C)
     if ipctk.has_intersections(mesh.mesh, x):
@@ -174,7 +175,7 @@ def _local_api_seconds(e, x, sample: int = 1000) -> float:
 
 
 def _selector(free: np.ndarray) -> sp.csr_matrix:
-    """Rows of the free DOFs among all 3 n_cp DOFs (as sim.potential does)."""
+    """Rows of the free DOFs among all 3 n_cp DOFs (as sim.model.potential does)."""
     pts = np.flatnonzero(free >= 0)
     dofs = (3 * pts[:, None] + np.arange(3)).ravel()
     return sp.csr_matrix((np.ones(dofs.size), (np.arange(dofs.size), dofs)), shape=(dofs.size, 3 * free.size))

@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from garment.materials import PRESETS
+from sim.materials import PRESETS
+from garment.build import build_simulator
 from sim.simulator import Simulator
 
 from .common import SCENES, step_summary
@@ -91,7 +92,7 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
         sc = case_scene(case, span_mm * 2 ** levels / 1000.0, quadrature)
         coarse = dataclasses.replace(sc, contact=dataclasses.replace(sc.contact, seams=COARSE_SEAMS)) if levels else sc
         start = time.perf_counter()
-        sim = Simulator.from_scene(coarse)
+        sim = build_simulator(coarse)
         build = time.perf_counter() - start
         preroll = round(sc.time.preroll / sc.time.dt)
         fine = min(round(SETTLE / sc.time.dt), preroll) if levels else 0
@@ -115,7 +116,7 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
         settled = step_summary(settle)
         cases.append({
             "resolution": span_mm, "garment": case, "knot_span_mm": span_mm, "dofs": sim.n_dofs,
-            "contact_vertices": sim.barrier.contact.n_cloth if sim.barrier is not None else 0,
+            "contact_vertices": sim.model.barrier.contact.n_cloth if sim.model.barrier is not None else 0,
             "sewn_at_span_mm": span_mm * 2 ** levels, "sewn_at_dofs": sew_dofs, "build_seconds": build,
             "sew_steps": len(sew), "sew_seconds_per_step": step_summary(sew)["seconds_per_step"],
             "settle_steps": len(settle), "settle_seconds_per_step": settled["seconds_per_step"],
@@ -131,17 +132,13 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
     return cases
 
 
-class _HandedOver(Simulator):
-    keep_crossings = True  # the coarse run's seam-band crossings reach past the fine bands
-
-
 def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     """A simulator of the scene's garments refined `levels` times, continuing from the
     state of `sim` (same surfaces, velocities, time, bodies and barrier stiffness)."""
     from conform.knot_insertion import refine_net, refine_patchset
     from garment.io.garments import load_garment
     from garment.io.patchfile import save_patchset
-    from sim.checkpoint import capture, restore
+
 
     garments, C, V = [], [], []
     for g in scene.garments:
@@ -152,11 +149,12 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
         C += [p.world.reshape(-1, 3) for p in fine.patches]
         V += [refine_net(sim.velocities(full), levels).reshape(-1, 3) for full in names]
         garments.append(dataclasses.replace(g, source=save_patchset(folder / f"{g.name}.json", fine)))
-    fine_sim = _HandedOver.from_scene(dataclasses.replace(scene, garments=garments))
-    state = capture(sim)
+    # keep_crossings: the coarse run's seam-band crossings reach past the fine bands.
+    fine_sim = build_simulator(dataclasses.replace(scene, garments=garments), keep_crossings=True)
+    state = sim.state.copy()
     state.C, state.V = np.concatenate(C), np.concatenate(V)
     # Other samples and seam vertices at the finer spans: the multipliers build up again,
     # the closed seams merge again at the first step.
     state.seam_multipliers = state.seam_gaps = state.seam_pairs = None
-    restore(fine_sim, state)
+    fine_sim.state = state
     return fine_sim

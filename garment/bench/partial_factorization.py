@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from sim.newton import NewtonOptions
-from sim.simulator import Simulator
+from garment.build import build_simulator
 
 from .common import scene
 
@@ -34,9 +34,9 @@ DEFAULT_STEPS = 12
 
 def _run_mode(n: int, mode: str, steps: int, progress=None) -> dict:
     sc = scene("two_plates", (n, n))
-    sim = Simulator.from_scene(sc, NewtonOptions(off_pattern=mode))
-    P0 = (sim.mass[:, None] * sim.V).sum(axis=0)
-    scale = float((sim.mass * np.linalg.norm(sim.V, axis=1)).sum())
+    sim = build_simulator(sc, NewtonOptions(off_pattern=mode))
+    P0 = (sim.model.mass[:, None] * sim.V).sum(axis=0)
+    scale = float((sim.model.mass * np.linalg.norm(sim.V, axis=1)).sum())
     stats = []
     start = time.perf_counter()
     for _ in range(steps):
@@ -48,7 +48,7 @@ def _run_mode(n: int, mode: str, steps: int, progress=None) -> dict:
     cg = sum(s.extra.get("pcg_solves", 0) for s in stats)
     merged = sum(s.extra.get("merged_solves", 0) for s in stats)
     moved = max(cg + merged, 1)
-    drift = float(np.linalg.norm((sim.mass[:, None] * sim.V).sum(axis=0) - P0) / scale)
+    drift = float(np.linalg.norm((sim.model.mass[:, None] * sim.V).sum(axis=0) - P0) / scale)
     return {
         "resolution": n, "mode": mode, "dofs": sim.n_dofs, "steps": steps,
         "newton_iterations_per_step": iters / steps, "seconds_per_iteration": total / max(iters, 1),

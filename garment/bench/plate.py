@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from sim.embedding import interpolation_matrix
-from sim.simulator import Simulator
+from garment.build import build_simulator
 
 from .common import observed_orders, scene
 
@@ -31,12 +31,12 @@ def solve(n: int, quadrature: str = "reduced") -> dict:
     sc = scene("plate", (n, n), quadrature)
     cloth = sc.cloths[0]
     start = time.perf_counter()
-    sim = Simulator.from_scene(sc)
+    sim = build_simulator(sc)
     sim.step()
     seconds = time.perf_counter() - start
     centre = np.array([(n - 2) / 2.0])
-    W = interpolation_matrix(centre, centre, n, n, 0, sim.n_cp)
-    w = abs(float((W @ (sim.C - sim.C0))[0] @ np.asarray(sc.load.pressure_direction)))
+    W = interpolation_matrix(centre, centre, n, n, 0, sim.model.n_cp)
+    w = abs(float((W @ (sim.C - sim.model.C0))[0] @ np.asarray(sc.load.pressure_direction)))
     a = cloth.size[0]
     analytic = navier_coefficient() * sc.load.pressure * a**4 / cloth.material.bending_stiffness
     return {

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from sim.simulator import Simulator
+from garment.build import build_simulator
 
 from .common import scene, step_summary
 
@@ -26,7 +26,7 @@ def solve(n: int, steps: int | None = None, quadrature: str | None = None, progr
     m = int(round(length / width * (n - 2))) + 2  # square knot spans
     sc = scene("wrinkle", (n, m), quadrature)
     start = time.perf_counter()
-    sim = Simulator.from_scene(sc)
+    sim = build_simulator(sc)
     stats = []
     for _ in range(steps or sc.time.frames):
         stats.append(sim.step())

@@ -50,7 +50,7 @@ def run(args) -> int:
 
 def register(sub) -> None:
     from garment.bench import BENCHMARKS
-    from garment.materials import QUADRATURES
+    from sim.materials import QUADRATURES
 
     b = sub.add_parser("bench", help="run a benchmark and print its table")
     b.add_argument("name", choices=sorted(BENCHMARKS))

@@ -18,24 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from garment.errors import InputError
+from sim.errors import InputError
+
+from garment.io.garments import read_pattern
 
 from .console import err, print_table, progress
 
 COLUMNS = ("panel", "status", "control_net", "boundary_error_mm", "tolerance_mm", "jacobian_min_max",
            "min_corner_angle_deg", "area_error_pct", "reduced_area_error_pct", "seconds")
-
-
-def read_input(path: Path, knot_span: float):
-    """Panels and seams of a panel mesh or a GarmentCode pattern conformed at `knot_span`
-    (m); pattern outlines are sampled at a sixth of a span, at most 3 mm apart."""
-    if path.suffix.lower() == ".json":
-        from garment.io.garmentcode import read_garmentcode
-
-        return read_garmentcode(path, spacing=min(knot_span / 6.0, 0.003))
-    from garment.io.panels import read_panels
-
-    return read_panels(path)
 
 
 def parse_corners(specs: list[str]) -> dict:
@@ -128,7 +118,7 @@ def run(args) -> int:
                              fold_pleats=args.fold_pleats)
     out_dir = Path(args.output)
     # Bad input leaves nothing behind: read it before creating the output directory.
-    panels, seams = read_input(args.input, options.finest_span)
+    panels, seams = read_pattern(args.input, options.finest_span)
     if args.panels:
         wanted = [p.strip() for p in args.panels.split(",") if p.strip()]
         missing = set(wanted) - {p.name for p in panels}

@@ -13,7 +13,7 @@ import json
 import sys
 from pathlib import Path
 
-from garment.errors import InputError
+from sim.errors import InputError
 
 from .console import err, print_table
 from .simulate import UP_VECTORS, add_render_options, render_frames

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from rich.markup import escape
 
-from garment.errors import InputError, Interrupted
+from sim.errors import InputError, Interrupted
 from garment.scene import Scene, load_scene
 
 from .console import err, progress
@@ -43,11 +43,10 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
     on one thread, so reruns and resumed runs repeat an uninterrupted run bit for bit.
     Raises Interrupted (exit 130) after a signal, SimulationError (exit 3) on failure.
     """
+    from garment.build import build_simulator, scene_hash
     from garment.io import MeshExportSink
-    from sim import checkpoint as ckpt
     from sim.driver import CheckpointPolicy, SkipExisting, drive, segment_path
     from sim.recovery import DEFAULT_SPLITS
-    from sim.simulator import Simulator
     from viz.rerun_sink import RerunSink, check_viewer_reachable
 
     if render_to is not None:
@@ -61,7 +60,7 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
         import ipctk
 
         ipctk.set_num_threads(1)  # TBB reductions in ipctk otherwise vary from run to run
-    digest = ckpt.scene_hash(scene)
+    digest = scene_hash(scene)
     state = load_resume_state(checkpoint, digest, quiet) if resume else None
     if state is not None and state.frame >= scene.time.frames:
         if not quiet:
@@ -70,7 +69,7 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
 
     start = time.perf_counter()
     try:
-        sim = Simulator.from_scene(scene)
+        sim = build_simulator(scene)
     except InputError as e:
         first = str(e).split(" ", 1)[0]
         if scene.path is not None and not first.endswith(":"):  # name a file, as scene errors do
@@ -83,7 +82,7 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
     if rrd is not None and state is not None:
         rrd = segment_path(rrd)  # earlier segments stay as they are
     if rrd is not None or connect is not None or serve is not None:
-        nets = (lambda: {p.name: sim.control_points(p.name) for p in sim.pieces}) if control_net else None
+        nets = (lambda: {p.name: sim.control_points(p.name) for p in sim.model.pieces}) if control_net else None
         rerun_sink = RerunSink(rrd, connect=connect, serve=serve, recording_name=scene.name, control_nets=nets)
         sinks.append(rerun_sink)
     if mesh_dir is not None:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from garment.errors import InputError
+from sim.errors import InputError
 
 # A body taller than this after scaling is almost certainly in centimetres or millimetres.
 _MAX_EXTENT_M = 5.0

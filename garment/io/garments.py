@@ -2,12 +2,26 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
-from garment.errors import InputError
-from garment.model import PatchSet
+from conform.pipeline import ConformOptions, conform_all
+from sim.errors import InputError
+from sim.patches import PatchSet
 
+from .bodies import to_scene_frame
+from .garmentcode import read_garmentcode
+from .panels import read_panels
 from .patchfile import FORMAT, load_patchset
+
+
+def read_pattern(path: Path, knot_span: float):
+    """Panels and seams of a panel mesh or a GarmentCode pattern conformed at `knot_span`
+    (m); pattern outlines are sampled at a sixth of a span, at most 3 mm apart."""
+    if path.suffix.lower() == ".json":
+        return read_garmentcode(path, spacing=min(knot_span / 6.0, 0.003))
+    return read_panels(path)
 
 
 def load_garment(spec) -> PatchSet:
@@ -15,11 +29,8 @@ def load_garment(spec) -> PatchSet:
     if spec.source.suffix.lower() == ".json" and _is_patch_file(spec.source):
         ps = load_patchset(spec.source)
     else:
-        from conform.pipeline import ConformOptions, conform_all
-        from garment.commands.conform import read_input
-
         options = ConformOptions(knot_span=spec.knot_span, seam_span=spec.seam_span, fold_pleats=spec.fold_pleats)
-        panels, seams = read_input(spec.source, options.finest_span)
+        panels, seams = read_pattern(spec.source, options.finest_span)
         if spec.placement is not None:
             place_panels(panels, spec.placement)
         ps = conform_all(panels, seams, options)
@@ -38,8 +49,6 @@ PLACEMENT_STRAIN = 0.2
 
 def place_panels(panels, placement) -> None:
     """Replace each panel's 3D layout by the placement file's positions of its vertices."""
-    from .bodies import to_scene_frame
-
     path = placement.file
     try:
         with open(path) as f:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from garment.errors import InputError
+from sim.errors import InputError
 
 from .bodies import BodySequence, check_up_axis, load_sequence, to_scene_frame
 

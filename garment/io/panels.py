@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from garment.errors import InputError
-from garment.model import Panel, PanelSeam
+from sim.errors import InputError
+from sim.patches import Panel
+from sim.seams.spec import PanelSeam
 
 
 def read_panels(path) -> tuple[list[Panel], list[PanelSeam]]:

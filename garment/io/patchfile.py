@@ -56,8 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
-from garment.errors import InputError
-from garment.model import BoundaryInterval, Patch, PatchSeam, PatchSet
+from sim.errors import InputError
+from sim.patches import Patch, PatchSet
+from sim.seams.spec import BoundaryInterval, PatchSeam
 
 FORMAT = "bspline-garment/patches"
 VERSION = 1

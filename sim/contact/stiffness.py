@@ -28,7 +28,7 @@ class AdaptiveStiffness:
         self.kappa_min = pressure * barrier.dhat / abs(_B_PRIME_HALF)
         self.kappa_max = _RANGE * self.kappa_min
         self.floor = self.kappa_min
-        self._prev_d = np.inf
+        self.prev_d = np.inf
         self._iterate_d = np.inf
         barrier.kappa = self.kappa_min
 
@@ -49,9 +49,9 @@ class AdaptiveStiffness:
         gB, gE = g_B[free].ravel(), g_E[free].ravel()
         k0 = -float(gE @ gB) / max(float(gB @ gB), 1e-300)
         d = b.min_distance(C)
-        if d < 0.1 * b.dhat and d < self._prev_d:
+        if d < 0.1 * b.dhat and d < self.prev_d:
             self.floor = min(2.0 * self.floor, self.kappa_max)
-        self._prev_d = d
+        self.prev_d = d
         self._iterate_d = np.inf
         b.kappa = float(np.clip(max(k0, self.floor), self.kappa_min, self.kappa_max))
         return b.kappa

@@ -7,7 +7,7 @@ from .inertia import InertiaEnergy
 from .membrane_fbw import MembraneFBW
 from .membrane_stvk import MembraneStVK
 
-# Membrane model name (garment.materials.MEMBRANE_MODELS) -> energy class.
+# Membrane model name (sim.materials.MEMBRANE_MODELS) -> energy class.
 MEMBRANES = {"fbw": MembraneFBW, "stvk": MembraneStVK}
 
 

@@ -2,6 +2,6 @@
 simulator on piecewise linear meshes, so comparisons isolate the discretisation."""
 
 from .mesh import TriangleMesh, equilateral_mesh, grid_mesh
-from .simulator import LinearSimulator
+from .model import linear_model
 
-__all__ = ["TriangleMesh", "equilateral_mesh", "grid_mesh", "LinearSimulator"]
+__all__ = ["TriangleMesh", "equilateral_mesh", "grid_mesh", "linear_model"]

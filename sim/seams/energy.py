@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .quadratic import QuadraticEnergy
+from ..energies.quadratic import QuadraticEnergy
 
 
 @dataclass
@@ -56,9 +56,11 @@ class SeamEnergy(QuadraticEnergy):
     """stiffness: k in N/m^2, one for all samples or one per sample (S,) (garments sewn
     with different seams)."""
 
-    def __init__(self, samples: SeamSamples, stiffness, max_step=np.inf):
-        """max_step: the largest change of a multiplier per update, N/m (one or one per sample)."""
+    def __init__(self, samples: SeamSamples, stiffness, max_step=np.inf, held_fraction: float = 0.01):
+        """max_step: the largest change of a multiplier per update, N/m (one or one per
+        sample); held_fraction: of the stiffness, on held samples (`hold`)."""
         self.samples = samples
+        self.held_fraction = float(held_fraction)
         D = (samples.Na - samples.Nb).tocsr()
         self.D = D
         k = np.broadcast_to(np.asarray(stiffness, float), samples.weights.shape)
@@ -80,18 +82,14 @@ class SeamEnergy(QuadraticEnergy):
         out += self.D.T @ self._weighted_multipliers()
 
     def _stiffness(self) -> sp.csr_matrix:
-        pull = self.active + self.HELD * self.held  # disjoint (hold)
+        pull = self.active + self.held_fraction * self.held  # disjoint (hold)
         return (self.D.T @ sp.diags(self.k * self.samples.weights * pull) @ self.D).tocsr()
 
-    # Samples held open by contact keep this fraction of the stiffness and no multiplier:
-    # let go entirely, a held seam drifted apart and tore on (dress_knife: seam66 19 mm
-    # once its pairs could not be sewn), while a full pull presses the layers between its
-    # sides together without bound.
-    HELD = 0.01
-
     def hold(self, active: np.ndarray, held: np.ndarray | None = None) -> bool:
-        """Pull the samples in `active` (S,) bool, those in `held` with HELD x the
-        stiffness only, the others not at all; multipliers of all but the active start
+        """Pull the samples in `active` (S,) bool, those in `held` with held_fraction x
+        the stiffness only (held open by contact: let go entirely, a held seam drifted
+        apart and tore on, dress_knife's seam66 19 mm, while a full pull presses the
+        layers between its sides together without bound), the others not at all; multipliers of all but the active start
         again from zero. Returns whether anything changed (the caller must then
         re-assemble constant Hessians, IncrementalPotential.refresh_constant)."""
         active = np.asarray(active, bool)

@@ -1,8 +1,8 @@
 """Seams between pieces: matched parameter samples -> seam energy samples.
 
 A seam is (piece_a, uv_a (S, 2), piece_b, uv_b (S, 2)): uv_a[s] is sewn to uv_b[s]
-(garment.model.PatchSeam). Once closed, the two cloths meet edge to edge along it; their
-contact meshes then share the seam's vertices (sim/seam_mesh.py, sim/contact/seams.py),
+(sim.patches.PatchSeam). Once closed, the two cloths meet edge to edge along it; their
+contact meshes then share the seam's vertices (sim/seams/mesh.py, sim/seams/contact.py),
 so the barrier never holds a closed seam open. With contact.seams = "band" the meshes are
 plain grids and contact-mesh vertices near the same sample of both sides are excluded
 from contact instead (excluded_pairs): cheaper, but cloth right next to a seam may cross.
@@ -10,25 +10,12 @@ from contact instead (excluded_pairs): cheaper, but cloth right next to a seam m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 
-from .embedding import interpolation_matrix
-from .energies.seam import SeamSamples
-
-
-@dataclass
-class SeamSpec:
-    piece_a: str
-    uv_a: np.ndarray
-    piece_b: str
-    uv_b: np.ndarray
-    name: str = ""
-    # Seams (indices in the simulator's list) this one waits for: the tucks of a folded
-    # pleat it is sewn onto (garment.model.PatchSeam.after; Simulator.PLEAT_WAIT).
-    after: tuple[int, ...] = ()
+from ..embedding import interpolation_matrix
+from .energy import SeamSamples
+from .spec import SeamSpec
 
 
 def _rows(piece, uv, n_cp):

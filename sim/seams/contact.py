@@ -1,6 +1,6 @@
 """Seams in the contact mesh: matched seam vertices that merge as the seams close.
 
-A sewn piece's mesh carries the matched points of its seams (sim/seam_mesh.py). Each
+A sewn piece's mesh carries the matched points of its seams (sim/seams/mesh.py). Each
 matched pair that comes within d_hat becomes one contact vertex at the mean of both sides,
 pair by pair, as a zipper: the stitched panels then share their seam line, so stitched
 neighbours never make a barrier (ipctk never pairs primitives that share a vertex) while
@@ -11,7 +11,7 @@ passing through cloth stays open instead: a nearly closed open pair that could n
 sewn shut right now without cloth passing through cloth or body (a pleat's layer folded
 between or against the two sides, a dart's folded neighbours within d_hat / 2) is BLOCKED
 until it could (`update_blocked`, every step). The seam energy pulls blocked pairs only
-weakly (`SeamEnergy.HELD`): pulling harder would only press the layers together without
+weakly (SewingOptions.held_fraction, sim/seams/sewing.py): pulling harder would only press the layers together without
 bound (dress_knife's knife pleats: contacts at 40 nm, Newton at its cap down to dt / 16).
 A refused merge is not final either: kept apart for good, a pair refused once while a
 layer slid past stayed open after it had gone (dress_knife: seam47 5.4 mm).
@@ -25,8 +25,8 @@ import ipctk
 import numpy as np
 import scipy.sparse as sp
 
-from ..seam_mesh import mean_rows, merged_faces, merged_labels
-from .mesh import ContactMesh, cloth_crossings_at, crossing_pairs, crossings_at
+from ..contact.mesh import ContactMesh, cloth_crossings_at, crossing_pairs, crossings_at
+from .mesh import mean_rows, merged_faces, merged_labels
 
 OPEN, SEWN, BLOCKED = 0, 1, 3  # states of a matched pair
 APART = 2  # in checkpoints before refused merges were retried (kept apart for good): read as BLOCKED

@@ -5,7 +5,7 @@ along its boundary a ring of triangles zipped to the seams' matched points: each
 stretch of boundary carries the seam's samples (thinned to about the grid spacing and
 subdivided where sparser), the same count on both sides, so the matched vertices of the
 two panels are pairs. Once the seams are closed the simulator merges every pair into one
-contact vertex (sim/contact/seams.py): the panels then share one vertex line, as a
+contact vertex (sim/seams/contact.py): the panels then share one vertex line, as a
 stitched seam does, so stitched neighbours never create a barrier (ipctk never pairs
 primitives that share a vertex) while every other pair near the seam keeps its barrier.
 
@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay
 
-from .embedding import grid_faces
+from ..embedding import grid_faces
 
 THIN = 0.5  # keep seam samples at least this many grid steps apart (on both sides)
 CLEAR = 0.35  # drop grid boundary vertices closer than this (grid steps) to a seam vertex

@@ -1,0 +1,136 @@
+"""The sewing policy: how seams pull over a run.
+
+Seams stiffen geometrically over the pre-roll (`ramp`) from `ramp_start`: full-strength
+springs across 26 cm gaps yank panels shut in one step (kN on grams of cloth), which
+costs 100 Newton iterations and CCD-limited steps; weak springs close them over the
+pre-roll, and the rising stiffness then holds them below 1 mm. The start is absolute, not
+a fraction of k: it is what grams of cloth across open gaps can take.
+
+Once a matched contact-vertex pair is nearly closed it merges (sim/seams/contact.py); a
+pair that cannot merge without cloth passing through cloth is blocked, and the samples
+nearest to it pull with `held_fraction` of the stiffness. A seam sewn onto a folded
+pleat's face (a waistband) pulls only once the pleat's tucks are within `pleat_wait_gap`,
+or from `pleat_wait_end` on: pulled earlier, the other panel comes down into the fold and
+its layers hold a tuck open (docs/findings.md, "Folded pleats"). Once at full stiffness,
+seam multipliers close what a penalty leaves open (sim/seams/energy.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .energy import SeamEnergy
+from .spec import SeamSpec
+
+
+@dataclass
+class SewingOptions:
+    """Filled from a scene's [sewing] table and its pre-roll (garment/build.py)."""
+
+    ramp: float = 0.0  # s, the stiffness ramp (0: full stiffness from the start)
+    ramp_start: float = 10.0  # N/m^2, stiffness at the ramp's start
+    quasistatic: bool = False  # drop velocities after each step of the ramp
+    multipliers: bool = True  # augmented-Lagrangian multipliers once at full stiffness
+    multiplier_step: float = 2.0  # one multiplier update adds at most this many E h
+    block_reach: float = 10.0  # d_hat: open pairs closer than this are tested for blocking
+    held_fraction: float = 0.01  # of the stiffness, on samples next to a blocked pair
+    pleat_wait_gap: float = 3e-3  # m, tucks this close release a pleat face's seam
+    pleat_wait_end: float = 0.6  # s, or from this time on
+
+
+class Sewing:
+    """The policy for one model's seams. seams: SeamSpec list; energy: their SeamEnergy;
+    sample_pair (S,): each sample's nearest matched contact-vertex pair (P: none);
+    stiffness: the ramp's end, N/m^2."""
+
+    def __init__(self, seams: list[SeamSpec], energy: SeamEnergy, sample_pair: np.ndarray,
+                 stiffness: float, options: SewingOptions, dt: float):
+        self.seams = seams
+        self.energy = energy
+        self.sample_pair = sample_pair
+        self.stiffness = float(stiffness)
+        self.options = options
+        counts = [len(s.uv_a) for s in seams]
+        self.start = np.cumsum([0] + counts)  # seam k's samples: start[k]:start[k + 1]
+        self.faces = self._pleat_faces()
+        if options.ramp > 0.0:
+            energy.set_scale(self.scale(dt))  # the first step's
+
+    def scale(self, t: float) -> float:
+        """Fraction of the full stiffness at time t (the ramp)."""
+        o = self.options
+        start = min(o.ramp_start / self.stiffness, 1.0)
+        return start ** max(1.0 - t / o.ramp, 0.0)
+
+    def ramp(self, t_next: float) -> bool:
+        """Stiffen for the step ending at t_next; True when the energy changed."""
+        if self.options.ramp > 0.0 and self.energy.scale < 1.0:
+            self.energy.set_scale(self.scale(t_next))
+            return True
+        return False
+
+    def hold(self, C: np.ndarray, t: float, released: np.ndarray, blocked_pairs: np.ndarray | None) -> bool:
+        """Pull weakly the samples whose nearest matched pair is blocked (blocked_pairs
+        (P,) bool, None without contact), not at all those of seams still waiting for
+        their pleat's tucks, fully the others. `released` (F,) is updated in place.
+        Returns whether the energy changed."""
+        held = np.zeros(self.energy.active.size, bool)
+        if blocked_pairs is not None:
+            held = np.append(blocked_pairs, False)[self.sample_pair]
+        waiting = self._waiting_samples(C, t, released)
+        return self.energy.hold(~held & ~waiting, held & ~waiting)
+
+    def after_step(self, C_new: np.ndarray) -> float:
+        """Multiplier update at the end of a step; returns the largest seam gap, m."""
+        gap = float(self.energy.samples.gaps(C_new).max(initial=0.0))
+        if self.options.multipliers and self.energy.scale >= 1.0:
+            self.energy.update_multipliers(C_new)
+        return gap
+
+    def pulled_shut(self, t_next: float, dt: float) -> bool:
+        """Drop velocities after this step: quasi-static sewing during the ramp. Pulled
+        shut, not thrown: seams closing 30 cm gaps around a body would fling the panels
+        onto it, pinning them at 1e-5 m and stalling Newton (shirt_mean)."""
+        return self.options.quasistatic and t_next < self.options.ramp - 1e-9 * dt
+
+    def gaps(self, C: np.ndarray) -> dict[str, float]:
+        """Largest gap (m) of each seam, by name (seams without one: their index)."""
+        gaps, start = self.energy.samples.gaps(C), self.start
+        return {s.name or str(k): float(gaps[start[k]:start[k + 1]].max(initial=0.0)) for k, s in enumerate(self.seams)}
+
+    def _pleat_faces(self) -> list[tuple[np.ndarray, list[slice]]]:
+        """Per seam that waits for a pleat: its samples on the pleat (within the tucks'
+        span of parameters on that piece; a seam may run on past the pleat) and the
+        tucks' sample ranges."""
+        start, seams = self.start, self.seams
+        faces = []
+        for k, s in enumerate(seams):
+            if not s.after:
+                continue
+            piece = seams[s.after[0]].piece_a
+            tuck_uv = np.concatenate([np.r_[seams[j].uv_a, seams[j].uv_b] for j in s.after])
+            lo, hi = tuck_uv.min(axis=0) - 1e-6, tuck_uv.max(axis=0) + 1e-6
+            uv = np.asarray(s.uv_a if s.piece_a == piece else s.uv_b, float)
+            on = np.all((uv >= lo) & (uv <= hi), axis=1)
+            faces.append((start[k] + np.flatnonzero(on), [slice(start[j], start[j + 1]) for j in s.after]))
+        return faces
+
+    def _waiting_samples(self, C: np.ndarray, t: float, released: np.ndarray) -> np.ndarray:
+        """(S,) bool: samples on a pleat whose tucks have not yet closed to pleat_wait_gap.
+        Once they have, the seam pulls for good (`released`, part of the State): without
+        the face's pull a small pleat can spring back open and the wait restart."""
+        waiting = np.zeros(self.energy.active.size, bool)
+        if released.all():
+            return waiting
+        o = self.options
+        gaps = self.energy.samples.gaps(C)
+        for k, (samples, tucks) in enumerate(self.faces):
+            if released[k]:
+                continue
+            if t >= o.pleat_wait_end or all(gaps[s].max(initial=0.0) <= o.pleat_wait_gap for s in tucks):
+                released[k] = True
+            else:
+                waiting[samples] = True
+        return waiting
