@@ -1,5 +1,5 @@
 """Conforming: flat garment panels (triangle meshes or pattern outlines) -> quadratic
-B-spline patches (DESIGN.md section 4b). Entry points: `conform_panel` for one panel,
+B-spline patches (docs/design.md section 4b). Entry points: `conform_panel` for one panel,
 `conform_all` for a garment with its seams; see pipeline.py for the stages."""
 
 from .boundary import PanelError

@@ -35,7 +35,7 @@ def side_rows(X: np.ndarray) -> list[np.ndarray]:
 
 
 def tangential_start(X: np.ndarray) -> np.ndarray:
-    """Interior control points by the tangential projection of DESIGN.md section 4b.3.
+    """Interior control points by the tangential projection of docs/design.md section 4b.3.
 
     For interior (i, j): C1 interpolates linearly between the boundary points of column i
     (X[i, 0] and X[i, m-1]) at j's Greville fraction, C2 between those of row j (X[0, j]

@@ -1,4 +1,4 @@
-"""Splitting the boundary loop into four sides at four corners (DESIGN.md section 4b.1).
+"""Splitting the boundary loop into four sides at four corners (docs/design.md section 4b.1).
 
 Automatic choice: candidates are the sharpest convex turns of the outline (turning angle
 measured over an arc-length window, so mesh noise does not count), plus hinted vertices

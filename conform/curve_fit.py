@@ -1,4 +1,4 @@
-"""Least-squares quadratic B-spline fits of the four sides (DESIGN.md section 4b.2).
+"""Least-squares quadratic B-spline fits of the four sides (docs/design.md section 4b.2).
 
 A side is the outline polyline from one corner to the next. It is sampled densely (every
 polyline vertex plus points in between, each weighted by the arc length it stands for),

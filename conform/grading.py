@@ -3,7 +3,7 @@
 The simulator's knots are uniform in parameter space (sim/bspline.py), but the rest map
 X(u, v) decides how much cloth a knot span holds. A short seam - a tuck or a dart leg a
 span or two long - folds centimetres of cloth within one or two spans at a uniform
-resolution, which a quadratic patch cannot close (README, "Garments"). So the conforming
+resolution, which a quadratic patch cannot close (docs/findings.md, "Garments"). So the conforming
 stage may place the integer parameters closer together in material space near short
 seams: a Grading maps the parameter along one direction to the fraction of arc length
 along the two sides that run that way.

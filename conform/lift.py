@@ -1,4 +1,4 @@
-"""Lifting the rest control net to the panel's 3D placement (DESIGN.md section 4b.5).
+"""Lifting the rest control net to the panel's 3D placement (docs/design.md section 4b.5).
 
 The placement is the piecewise-linear map rest -> world of the panel's triangles. The
 world control net is the least-squares fit of the surface (not of the control net) to

@@ -1,4 +1,4 @@
-"""MIPS refinement of the rest control net (DESIGN.md section 4b.4).
+"""MIPS refinement of the rest control net (docs/design.md section 4b.4).
 
 Minimises, over the control points X (n, m, 2) of the rest map X(u, v),
 
@@ -137,7 +137,7 @@ class BoundaryFit:
 
 @dataclass
 class MipsOptions:
-    """Solver settings; the defaults are the ones measured in README ("Conforming panels")."""
+    """Solver settings; the defaults are the ones measured in docs/findings.md ("Conforming panels")."""
 
     w_boundary: float = np.inf  # weight of E_fit; inf fixes the boundary rows
     max_iterations: int = 60

@@ -211,7 +211,7 @@ def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOpt
 
 
 def interior_start(Xb: np.ndarray) -> np.ndarray:
-    """The tangential-projection start of DESIGN.md 4b.3; if it inverts quadrature points,
+    """The tangential-projection start of docs/design.md 4b.3; if it inverts quadrature points,
     the harmonic (Laplace) net when that inverts fewer."""
     from .mips import det, rule_points
 

@@ -6,7 +6,7 @@ between the stretches' inner ends. Knife pleats (dress_knife's waist) are tucks 
 each tuck's tip on the other's root, so three layers stack in a Z. Sewn from flat panels
 the layers fold in whatever order the first steps give them; where a layer ends up
 between a seam's two sides the seam cannot close without taking cloth through cloth, and
-contact holds it open (README, "Garments").
+contact holds it open (docs/findings.md, "Folded pleats").
 
 So the placement is folded before sewing, along lines across the panel at right angles to
 the side: every tuck at its tip and at one root (in a knife pleat the root on the other
@@ -42,7 +42,7 @@ PLEAT_DEPTH = 1.5
 # tucks (fold_span), down to the seam span over this. dress_knife's bodices at 8 mm: their
 # pleats stay flat and their layers hold seam53/54 1.1-1.4 mm open; at 5 mm (6 of each
 # bodice's 8 tucks folded) every seam closed; at 4.8 and 4.1 mm (all folded) the dart
-# seam43 next to panel13's 6.2 mm pleat stayed 10-14 mm open (README, "Folded pleats").
+# seam43 next to panel13's 6.2 mm pleat stayed 10-14 mm open (docs/findings.md, "Folded pleats").
 PLEAT_REFINE = 1.6
 # Each fold turns over this many knot spans of cloth: sharper folds the net cannot follow
 # without straining the placement.

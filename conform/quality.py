@@ -1,4 +1,4 @@
-"""The quality report of a conformed patch (DESIGN.md section 4b, "Report per patch").
+"""The quality report of a conformed patch (docs/design.md section 4b, "Report per patch").
 
 - boundary fit error: the two-sided (Hausdorff) distance between the input outline and
   the patch boundary, mm, against the tolerance max(1 mm, 0.5 % of the panel diameter);

@@ -1,4 +1,4 @@
-"""Hessian assembly into a fixed CSC pattern, without triplets (DESIGN.md section 5).
+"""Hessian assembly into a fixed CSC pattern, without triplets (docs/design.md section 5).
 
 The unknowns are the free control points (3 DOFs each). The pattern holds the lower
 triangle of the 3n x 3n matrix (CHOLMOD reads only that), grouped in 3x3 blocks: one

@@ -1,4 +1,4 @@
-"""Quadratic B-spline basis on open uniform integer knots (DESIGN.md section 2).
+"""Quadratic B-spline basis on open uniform integer knots (docs/design.md section 2).
 
 With n control points in a direction the knots are [0, 0, 0, 1, ..., n-3, n-2, n-2, n-2]
 and the parameter domain is [0, n-2]. Basis function i is supported on [i-2, i+1]

@@ -1,6 +1,6 @@
 """Cloth materials: the paper's parameter set and the constants the energies use.
 
-Conventions follow the paper's public reference implementation (DESIGN.md section 4), so
+Conventions follow the paper's public reference implementation (docs/design.md section 4), so
 the paper's table of (E_st, E_sh, E_bd, nu, h) reproduces the paper's behaviour:
 
     k_st = E_st / (2 (1 + nu))        stretch stiffness, Pa
@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 MEMBRANE_MODELS = ("fbw", "stvk", "none")
 QUADRATURES = ("reduced", "gauss2", "gauss3")
 # Smallest control net per direction each quadrature supports: the reduced rule needs a
-# boundary ring around a non-empty interior region (DESIGN.md section 3).
+# boundary ring around a non-empty interior region (docs/design.md section 3).
 MIN_CONTROL_POINTS = {"reduced": 5, "gauss2": 3, "gauss3": 3}
 
 

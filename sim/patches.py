@@ -1,7 +1,7 @@
 """The data model shared by every stage: patches of quadratic B-spline cloth.
 
 A patch is a tensor-product quadratic B-spline surface with open uniform integer knots
-(DESIGN.md section 2): n x m control points, parameter domain [0, n-2] x [0, m-2].
+(docs/design.md section 2): n x m control points, parameter domain [0, n-2] x [0, m-2].
 """
 
 from __future__ import annotations

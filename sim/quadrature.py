@@ -1,4 +1,4 @@
-"""Quadrature rules in parametric space (DESIGN.md section 3).
+"""Quadrature rules in parametric space (docs/design.md section 3).
 
 A rule is three flat arrays (u, v, w): points and parametric weights over the domain
 [0, n-2] x [0, m-2] of an n x m control net. Physical weights multiply w by

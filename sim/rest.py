@@ -1,4 +1,4 @@
-"""Rest-shape precomputation per quadrature point (DESIGN.md section 2).
+"""Rest-shape precomputation per quadrature point (docs/design.md section 2).
 
 Everything here depends only on the rest control net X (n, m, 2) and a quadrature rule,
 so it is computed once. For each point q we keep the stencil of control points whose

@@ -1,4 +1,4 @@
-"""Physics against analytic results (DESIGN.md section 7), small enough for every run."""
+"""Physics against analytic results (docs/design.md section 7), small enough for every run."""
 
 from __future__ import annotations
 

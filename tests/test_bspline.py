@@ -1,6 +1,6 @@
 """Quadratic B-spline basis (sim/bspline.py) and the second-order point data built on it
 (sim/rest.py): partition of unity, derivatives, the knot-average convention for N'',
-linear precision and the Laplacian of affine / quadratic maps (DESIGN.md section 2)."""
+linear precision and the Laplacian of affine / quadratic maps (docs/design.md section 2)."""
 
 from __future__ import annotations
 

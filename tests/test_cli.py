@@ -11,7 +11,7 @@ from garment.cli import main
 from garment.io import read_frame
 from garment.scene import loads_scene
 from garment.build import build_simulator
-from viz.rerun_sink import read_rrd_positions
+from viz.recording import read_rrd_positions
 
 SCENE = """
 [[cloth]]

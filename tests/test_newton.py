@@ -215,7 +215,7 @@ def test_bending_only_potential_converges_in_one_newton_step():
 
 
 def test_quasistatic_plate_converges_in_two_iterations():
-    """The plate benchmark (DESIGN.md section 7) with a negligible membrane: the Newton
+    """The plate benchmark (docs/design.md section 7) with a negligible membrane: the Newton
     loop needs one step plus the convergence check, and the deflection is close to the
     Kirchhoff value w_max = 0.00406 q a^4 / D."""
     E, nu, h, q = 2e6, 0.03, 0.01, 9.81

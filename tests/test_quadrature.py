@@ -1,5 +1,5 @@
 """Quadrature rules (sim/quadrature.py) and their physical weights (sim/rest.py):
-exactness on rectangles, the reduced rule's layout (DESIGN.md section 3), stencil sizes
+exactness on rectangles, the reduced rule's layout (docs/design.md section 3), stencil sizes
 and the rest area of a curved patch."""
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ def find(rule, u, v):
 
 
 def test_reduced_layout_7x7():
-    """DESIGN.md section 3 on the figure's domain [0, 5]^2."""
+    """docs/design.md section 3 on the figure's domain [0, 5]^2."""
     rule = reduced_membrane(7, 7)
     # Interior cell centred on knot (2, 2): single point in u on the knot, 2 Gauss in v.
     for v in (2 - G, 2 + G):

@@ -9,7 +9,8 @@ from rerun.chunk import RrdReader
 from garment.io import MeshExportSink, read_frame
 from sim.sinks import Frame, MeshTopology
 from sim.stats import StepStats
-from viz.rerun_sink import RerunSink, read_rrd_faces, read_rrd_positions, vertex_normals
+from viz.recording import read_rrd_faces, read_rrd_positions
+from viz.rerun_sink import RerunSink, vertex_normals
 
 N_FRAMES = 5
 DT = 1.0 / 30.0  # s between frames

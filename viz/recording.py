@@ -357,3 +357,16 @@ def export_mesh(path: str | os.PathLike, verts: np.ndarray, faces: np.ndarray) -
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def read_rrd_positions(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Cloth name -> (frames, V, 3) float32 vertex positions (m), sorted by `frame` index.
+    (A shortcut for `load_recording(path).positions(name)`.)"""
+    rec = load_recording(path)
+    return {name: rec.positions(name) for name in rec.cloth_names}
+
+
+def read_rrd_faces(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Cloth name -> (F, 3) int64 static triangle indices."""
+    rec = load_recording(path)
+    return {name: rec.faces(name) for name in rec.cloth_names}

@@ -311,20 +311,3 @@ class RerunSink:
         self._rec = None
         if self._tmp is not None and self._tmp.exists():
             os.replace(self._tmp, self.path)
-
-
-def read_rrd_positions(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Cloth name -> (frames, V, 3) float32 vertex positions (m), sorted by `frame` index.
-    (A shortcut for `viz.recording.load_recording(path).positions(name)`.)"""
-    from .recording import load_recording
-
-    rec = load_recording(path)
-    return {name: rec.positions(name) for name in rec.cloth_names}
-
-
-def read_rrd_faces(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Cloth name -> (F, 3) int64 static triangle indices."""
-    from .recording import load_recording
-
-    rec = load_recording(path)
-    return {name: rec.faces(name) for name in rec.cloth_names}

@@ -1,4 +1,4 @@
-"""Contact-Hessian assembly cost in dense contact (DESIGN.md sections 5 and 8).
+"""Contact-Hessian assembly cost in dense contact (docs/design.md sections 5 and 8).
 
 The sphere scene's sheet is placed draped over the sphere and the ground, every contact
 vertex within dhat/2 of an obstacle: a state with one collision per contact vertex or

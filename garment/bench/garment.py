@@ -36,7 +36,7 @@ from .common import SCENES, step_summary
 # extrapolated Newton steps measured worse); "dress-frictionless" isolates what friction
 # costs Newton. Seams merge, as in the scene, except while sewing at the coarse span
 # before a refinement (COARSE_SEAMS); "dress-band" keeps contact off near every seam
-# throughout, the configuration of the README's earlier 61K figures.
+# throughout, the configuration of the earlier 61K figures (docs/performance.md).
 _PAPER_MESH = {"mesh_density": 1.0}
 CASES = {
     "poncho": ("poncho_rumba", {}, None, {}),

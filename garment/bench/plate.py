@@ -1,9 +1,9 @@
-"""Simply supported square plate under uniform load (DESIGN.md section 7).
+"""Simply supported square plate under uniform load (docs/design.md section 7).
 
 Bending only, quasi-static: one Newton step solves the (quadratic) problem. The reference
 is the Navier series for the centre deflection of a simply supported Kirchhoff plate,
 w = alpha q a^4 / D with alpha = 16 / pi^6 sum_{m,n odd} (-1)^((m+n)/2-1) / (m n (m^2+n^2)^2)
-= 0.0040624 (the rounded 0.00406 of DESIGN.md would bias errors below 0.1 %).
+= 0.0040624 (the rounded 0.00406 of docs/design.md would bias errors below 0.1 %).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Wrinkling of a clamped, stretched sheet (Wang et al. 2019; DESIGN.md section 7).
+"""Wrinkling of a clamped, stretched sheet (Wang et al. 2019; docs/design.md section 7).
 
 Quasi-static: the clamped short edges move apart in load steps to 1.1x the length, then
 the sheet settles. Reports the maximum out-of-plane deflection of the surface (the sheet

@@ -1,1 +1,1 @@
-"""IPC contact on the embedded triangle meshes (paper section 4.3; DESIGN.md section 6)."""
+"""IPC contact on the embedded triangle meshes (paper section 4.3; docs/design.md section 6)."""

@@ -1,5 +1,5 @@
 """Contact Hessian mapped from contact-mesh vertices to control points, in parallel
-(DESIGN.md section 5, the paper's Algorithm 1).
+(docs/design.md section 5, the paper's Algorithm 1).
 
 The barrier Hessian H lives on vertex pairs (u, v) of the embedded mesh, x = W C, so the
 control-point Hessian is W^T H W: block (I, J) += W[u, i] W[v, j] H_uv. We accumulate it

@@ -32,7 +32,7 @@ class BarrierEnergy(ContactEnergy):
         self.kappa = float(kappa)
         self.collisions = self._new_collisions()
         # A bounded iteration count: the default 1e7 took minutes on cloth lying on a plane
-        # (DESIGN.md section 8); Tight Inclusion stays conservative when it stops early.
+        # (docs/design.md section 8); Tight Inclusion stays conservative when it stops early.
         self.ccd = ipctk.TightInclusionCCD(ccd_tolerance, ccd_max_iterations)
         # The collision sets at the last two points evaluated, newest first: [C, x,
         # collisions]. Two, because after a rejected trial (an extrapolated step, the

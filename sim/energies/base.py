@@ -15,7 +15,7 @@ from ..assembly import BlockPattern
 #: PSD projections of an element Hessian: negative eigenvalues set to zero ("clamp", IPC's)
 #: or to their magnitude ("abs", Chen et al. 2024, "Positive-Definite Fixes for Second-Order
 #: Optimization": it keeps curvature in compressed directions; on the dress it took more
-#: Newton iterations than clamp, README "Garments").
+#: Newton iterations than clamp, docs/findings.md, "Sliding friction and extrapolation").
 PROJECTIONS = ("clamp", "abs")
 
 
