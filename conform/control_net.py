@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.patches import Patch
+from sim.bspline import basis_matrix
 
 
 def assemble_boundary(sides: list[np.ndarray]) -> np.ndarray:
@@ -120,8 +121,6 @@ def laplace_start(X: np.ndarray, spans: tuple[float, float] | None = None) -> np
 def boundary_area(X: np.ndarray) -> float:
     """Area enclosed by the patch boundary (Green's theorem on the four side curves; exact:
     the integrand is polynomial on each span)."""
-    from sim.bspline import basis_matrix
-
     t, w = np.polynomial.legendre.leggauss(3)
     total = 0.0
     for row in side_rows(X):

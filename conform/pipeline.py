@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from sim.errors import InputError
 from sim.patches import SIDES, Panel, Patch, PatchSet
 from sim.seams.spec import PanelSeam
 
@@ -37,9 +38,12 @@ from .curve_fit import (LAMBDA, SideSamples, evaluate, fit_side_reweighted, norm
                         second_difference)
 from .grading import SHORT, Request, grade
 from .lift import lift
-from .mips import BoundaryFit, MipsOptions
+from .mips import BoundaryFit, MipsOptions, det, rule_points
 from .mips import refine as mips_refine
+from .pleats import fold_panels, fold_span, pleat_faces
 from .quality import lift_strain, polyline_distance, report
+from .seams import map_seam, seam_hints, short_seams
+from .split import SPLIT_IMBALANCE, darts_of, imbalance, split_panel, split_seams
 
 
 @dataclass
@@ -213,8 +217,6 @@ def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOpt
 def interior_start(Xb: np.ndarray) -> np.ndarray:
     """The tangential-projection start of docs/design.md 4b.3; if it inverts quadrature points,
     the harmonic (Laplace) net when that inverts fewer."""
-    from .mips import det, rule_points
-
     n, m = Xb.shape[:2]
     guard = rule_points(n, m)
 
@@ -400,8 +402,6 @@ def plan_split(panel: Panel, outline: Outline, seams: list[PanelSeam], options: 
     """The split of a darted panel into pieces (conform/split.py), or None to keep it one
     patch: options.split "never", no dart that can be cut, user corners for the panel, or
     ("auto") sides of one patch balanced within SPLIT_IMBALANCE."""
-    from .split import SPLIT_IMBALANCE, darts_of, imbalance, split_panel
-
     if options.split == "never" or options.corners is not None:
         return None
     darts = darts_of(panel.name, seams)
@@ -421,22 +421,15 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     pieces `name.0`, `name.1`, ... (plan_split), each its own patch, sewn together along
     the cuts. corners: panel (or piece) name -> 4 corners (overrides); on_panel(panel,
     report or None, error or None) after each panel or piece."""
-    from .seams import map_seam, seam_hints, short_seams
-    from .split import split_seams
-
     options = options or ConformOptions()
     corners = corners or {}
     names = {p.name for p in panels}
     unknown = {c for c in corners if c not in names and c.rpartition(".")[0] not in names}
     if unknown:
-        from sim.errors import InputError
-
         raise InputError(f"corners: no panel named {', '.join(sorted(unknown))}")
     patches, quality, prov, failures, tol, splits = {}, {}, {}, {}, {}, {}
     warps, flat, spans = {}, {}, {}
     if options.fold_pleats:
-        from .pleats import fold_panels, fold_span
-
         if options.seam_span is not None:  # graded nets: fine enough at the tucks to fold
             spans = {p.name: fold_span(p.name, seams, options.finest_span) for p in panels}
             spans = {name: h for name, h in spans.items() if h < options.finest_span}
@@ -497,8 +490,6 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
             on_panel(panel, rep, None)
     mapped = [map_seam(s, patches, tol) for s in all_seams if s.panel_a in patches and s.panel_b in patches]
     if warps:
-        from .pleats import pleat_faces
-
         faces = {name: tucks for w in warps.values() for name, tucks in pleat_faces(w.fold, all_seams).items()}
         mapped = [dataclasses.replace(m, after=faces[m.name]) if m.name in faces else m for m in mapped]
     source = panels[0].source if panels else ""

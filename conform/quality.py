@@ -19,6 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.rest import point_data
+from sim.bspline import basis_matrix
 
 from .boundary import Outline
 from .curve_fit import evaluate
@@ -134,8 +135,6 @@ def report(outline: Outline, X: np.ndarray, tolerance: float) -> dict:
 
 def lift_strain(X: np.ndarray, C: np.ndarray, per_span: int = 4) -> float:
     """Largest |length in 3D / length at rest - 1| between neighbouring samples."""
-    from sim.bspline import basis_matrix
-
     n, m = X.shape[:2]
     Bu = basis_matrix(np.linspace(0, n - 2, per_span * (n - 2) + 1), n)
     Bv = basis_matrix(np.linspace(0, m - 2, per_span * (m - 2) + 1), m)

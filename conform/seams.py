@@ -13,6 +13,7 @@ import numpy as np
 
 from sim.patches import SIDES, Patch
 from sim.seams.spec import BoundaryInterval, PanelSeam, PatchSeam
+from sim.bspline import basis_matrix
 
 from .control_net import side_rows
 from .curve_fit import project
@@ -82,8 +83,6 @@ def locate_boundary(X: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.n
 
 def invert(X: np.ndarray, points: np.ndarray, iterations: int = 20) -> np.ndarray:
     """(u, v) with X(u, v) = points, by Newton from the nearest sample of a fine grid."""
-    from sim.bspline import basis_matrix
-
     n, m = X.shape[:2]
     gu = np.linspace(0, n - 2, 8 * (n - 2) + 1)
     gv = np.linspace(0, m - 2, 8 * (m - 2) + 1)

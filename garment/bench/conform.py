@@ -33,9 +33,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg.norm)
 
-from sim.patches import Panel
+from conform.pipeline import ConformOptions, conform_panel
 from sim.bspline import basis_matrix
-from sim.quadrature import membrane_rule
+from sim.embedding import grid_faces
+from sim.patches import Panel
+from sim.quadrature import Rule, gauss, membrane_rule
 from sim.rest import point_data
 
 COLUMNS = ("shape", "resolution", "control_points", "quadrature", "area_error", "mass_error", "energy_error",
@@ -117,8 +119,6 @@ def mass_matrix(X: np.ndarray, pd) -> "sp.csr_matrix":
 
 def rule_quantities(X: np.ndarray, C: np.ndarray, quadrature: str):
     """Area and StVK energy with the membrane rule `quadrature`, mass matrix with 3 x 3 Gauss."""
-    from sim.quadrature import gauss
-
     n, m = X.shape[:2]
     area, _, energy = _integrate(X, C, point_data(X, membrane_rule(quadrature, n, m)))
     return area, mass_matrix(X, point_data(X, gauss(n, m, 3))), energy
@@ -133,8 +133,6 @@ def linear_reference(X: np.ndarray, C: np.ndarray, fine: int = FINE) -> tuple[fl
     Bu, Bv = basis_matrix(u, n), basis_matrix(v, m)
     P = np.einsum("ai,bj,ijd->abd", Bu, Bv, X, optimize=True).reshape(-1, 2)
     W = np.einsum("ai,bj,ijd->abd", Bu, Bv, C, optimize=True).reshape(-1, 3)
-    from sim.embedding import grid_faces
-
     T = grid_faces(u.size, v.size)
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
     e1, e2 = b - a, c - a
@@ -154,8 +152,6 @@ def linear_reference(X: np.ndarray, C: np.ndarray, fine: int = FINE) -> tuple[fl
 
 def gauss_reference(X: np.ndarray, C: np.ndarray) -> tuple[float, np.ndarray, float]:
     """Area, mass matrix and StVK energy with 6 x 6 Gauss points per knot span."""
-    from sim.quadrature import Rule
-
     n, m = X.shape[:2]
     t, w = np.polynomial.legendre.leggauss(6)
     t, w = 0.5 * (t + 1.0), 0.5 * w
@@ -169,8 +165,6 @@ def gauss_reference(X: np.ndarray, C: np.ndarray) -> tuple[float, np.ndarray, fl
 
 
 def case(name: str, resolution: int, quadrature: str = "reduced") -> dict:
-    from conform.pipeline import ConformOptions, conform_panel
-
     polygon, (lu, lv) = shapes()[name]
     short = min(lu, lv)
     n = max(5, int(round((resolution - 2) * lu / short)) + 2)

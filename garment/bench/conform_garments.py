@@ -12,6 +12,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from conform.pipeline import ConformOptions, conform_all
+from garment.io.garments import read_pattern
+
 GARMENTS = Path(__file__).resolve().parents[2] / "assets" / "garments"
 CASES = {"dress_knife": "dress_knife.obj", "shirt_mean": "shirt_mean.json", "dress_pencil": "dress_pencil.json"}
 TARGET_SECONDS = 2.0
@@ -29,9 +32,6 @@ def panel_seconds(ps) -> dict[str, float]:
 
 
 def measure(name: str, span_mm: int) -> dict:
-    from conform.pipeline import ConformOptions, conform_all
-    from garment.io.garments import read_pattern
-
     span = 1e-3 * span_mm
     panels, seams = read_pattern(GARMENTS / CASES[name], span)
     start = time.perf_counter()

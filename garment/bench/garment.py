@@ -23,8 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.materials import PRESETS
+from conform.knot_insertion import refine_net, refine_patchset
 from garment.build import build_simulator
+from garment.io.garments import load_garment
+from garment.io.patchfile import save_patchset
+from garment.scene import load_scene
+from sim.materials import PRESETS
 from sim.simulator import Simulator
 
 from .common import SCENES, step_summary
@@ -66,8 +70,6 @@ COARSE_SEAMS = "band"
 
 def case_scene(case: str, span_m: float, quadrature: str | None = None):
     """The scene of `case` with every garment at knot span `span_m`, uniform."""
-    from garment.scene import load_scene
-
     if case not in CASES:
         raise SystemExit(f"garment bench garment: --case must be one of {', '.join(CASES)}, not {case!r}")
     scene_name, contact, preset, time_changes = CASES[case]
@@ -135,10 +137,6 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
 def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     """A simulator of the scene's garments refined `levels` times, continuing from the
     state of `sim` (same surfaces, velocities, time, bodies and barrier stiffness)."""
-    from conform.knot_insertion import refine_net, refine_patchset
-    from garment.io.garments import load_garment
-    from garment.io.patchfile import save_patchset
-
 
     garments, C, V = [], [], []
     for g in scene.garments:
