@@ -122,8 +122,8 @@ def schema(cls: type) -> Schema:
         for k in keys
     ]
     for k in [k for k in keys if k.after]:
-        keys.remove(k)
-        keys.insert(keys.index(next(a for a in keys if a.name == k.after)) + 1, k)
+        keys = [a for a in keys if a is not k]
+        keys.insert(next(i for i, a in enumerate(keys) if a.name == k.after) + 1, k)
     return Schema(cls, tuple(keys))
 
 
