@@ -87,8 +87,7 @@ def contact_options(spec) -> ContactOptions:
 
 def sewing_options(scene, ramp: float) -> SewingOptions:
     """The sewing policy from a scene's [sewing] table, its sewing mode and the ramp (s)."""
-    sewing = getattr(scene, "sewing", None)  # XXX until the [sewing] table lands
-    given = {f.name: getattr(sewing, f.name) for f in fields(sewing)} if sewing is not None else {}
+    given = {f.name: getattr(scene.sewing, f.name) for f in fields(scene.sewing)}
     return SewingOptions(ramp=ramp, quasistatic=scene.time.sewing == "quasistatic", **given)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import pickle
-import textwrap
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -15,16 +15,20 @@ from garment.build import build_simulator
 from sim.materials import PRESETS, Material
 from garment.scene import (
     ClothSpec,
+    ContactSpec,
     LoadSpec,
     OutputSpec,
     Perturbation,
     PinSpec,
+    Scene,
     SceneError,
+    SewingSpec,
     TimeSpec,
     load_scene,
     loads_scene,
     parse_scene,
 )
+from garment.scene.schema import schema
 
 FULL = """\
 [scene]
@@ -129,12 +133,134 @@ def test_full_scene(tmp_path):
     assert not scene.output.rrd.is_absolute()
 
 
-def test_docstring_example_is_valid():
-    example = scene_module.__doc__.split("::\n", 1)[1].split("\nAny problem", 1)[0]
-    scene = loads_scene(textwrap.dedent(example))
+ASSETS = Path(__file__).resolve().parents[1] / "assets"
+
+
+def _with(text: str, after: dict[str, str]) -> str:
+    """``text`` with each line ``after[line]`` inserted after ``line``."""
+    for line, added in after.items():
+        assert line + "\n" in text
+        text = text.replace(line + "\n", f"{line}\n{added}\n", 1)
+    return text
+
+
+# FULL plus every other key of every table (test_every_key_example_covers_the_schema).
+EVERY_KEY = _with(FULL, {
+    "axis_v = [0, 0, -1]": "velocity = [0, 0, 0.1]",
+    "[cloth.material]": "E_bd = 1e4",
+    'corners = ["u0v0", "u1v0"]': "sides = []\nbox = [[0.0, 0.0], [1.0, 0.1]]\ndepth = 1\nstart = 0.0",
+    "pressure = 0.0": "pressure_direction = [0, 0, 1]",
+    'mode = "dynamic"': 'newton_extrapolate = 0\npreroll = 0.1\nsewing = "quasistatic"',
+}) + f"""
+[[obstacle]]
+name = "ball"
+inset = 0.001
+[obstacle.sphere]
+center = [0, 0, 0.5]
+radius = 0.2
+subdivisions = 2
+[obstacle.spin]
+axis = [0, 0, 2]
+center = [0, 0, 0]
+speed = 1.0
+start = 0.0
+ramp = 0.1
+
+[[obstacle]]
+[obstacle.plane]
+point = [0, 0, -1]
+normal = [0, 0, 1]
+size = 4.0
+
+[[obstacle]]
+mesh = "{ASSETS / 'bodies' / 'mean_all.obj'}"
+scale = 1.0
+up = "y"
+translate = [0, 0, 0.75]
+
+[[obstacle]]
+animation = "{ASSETS / 'bodies' / 'rumba_dancing_121f.npz'}"
+fps = 25.0
+
+[contact]
+enabled = true
+dhat = 1e-3
+kappa = "adaptive"
+mu = 0.1
+eps_v = 1e-3
+self_contact = true
+seams = "merge"
+mesh_density = 2.0
+
+[[garment]]
+name = "dress"
+source = "{ASSETS / 'garments' / 'dress_knife.obj'}"
+knot_span_mm = 40
+seam_span_mm = 8
+fold_pleats = true
+pleat_wait = true
+seam_stiffness = 1e5
+[garment.material]
+nu = 0.3
+[garment.placement]
+file = "{ASSETS / 'garments' / 'dress_knife.obj'}"
+scale = 1.0
+up = "z"
+translate = [0, 0, 0]
+
+[sewing]
+ramp_start = 20.0
+multiplier_step = 1.5
+block_reach = 8.0
+held_fraction = 0.05
+pleat_wait_gap_mm = 2.5
+pleat_wait_end = 0.4
+"""
+
+
+def test_every_key_example_is_valid():
+    scene = loads_scene(EVERY_KEY)
     assert scene.cloths[0].material.E_bd == 1e4
     assert scene.pins[0].box == ((0.0, 0.0), (1.0, 0.1))
     assert scene.load.pressure_direction == (0.0, 0.0, 1.0)
+    assert [o.kind for o in scene.obstacles] == ["sphere", "plane", "mesh", "animation"]
+    assert scene.obstacles[0].spin.axis == (0.0, 0.0, 1.0)
+    assert scene.contact.adaptive_kappa and scene.contact.kappa == ContactSpec().kappa
+    assert scene.sewing == SewingSpec(20.0, 1.5, 8.0, 0.05, 2.5e-3, 0.4)
+    assert (scene.garments[0].knot_span, scene.garments[0].seam_span) == (0.04, 0.008)
+
+
+def test_every_key_example_covers_the_schema():
+    def written(data, dotted=""):
+        for name, value in data.items():
+            yield dotted + name
+            for table in value if isinstance(value, list) else [value]:
+                if isinstance(table, dict):
+                    yield from written(table, f"{dotted}{name}.")
+
+    seen = set()  # [cloth.material] has the keys of [material]: written once is enough
+
+    def declared(keys, dotted=""):
+        for k in keys:
+            yield dotted + k.name
+            if k.sub is not None and id(k.sub) not in seen:
+                seen.add(id(k.sub))
+                yield from declared(k.sub.keys, f"{dotted}{k.name}.")
+
+    assert set(declared(schema(Scene).keys)) - set(written(tomllib.loads(EVERY_KEY))) == set()
+
+
+def test_module_docstring_points_at_the_reference():
+    assert "docs/scene-reference.md" in scene_module.__doc__
+
+
+def test_sewing_defaults_and_millimetres():
+    assert loads_scene(CLOTH).sewing == SewingSpec()
+    assert SewingSpec() == SewingSpec(ramp_start=10.0, multiplier_step=2.0, block_reach=10.0, held_fraction=0.01,
+                                      pleat_wait_gap=3e-3, pleat_wait_end=0.6)
+    sewing = loads_scene(CLOTH + "[sewing]\npleat_wait_gap_mm = 5\nheld_fraction = 0\n").sewing
+    assert sewing == SewingSpec(pleat_wait_gap=5e-3, held_fraction=0.0)
+    assert isinstance(sewing.held_fraction, float)
 
 
 def test_defaults(tmp_path):
@@ -387,6 +513,18 @@ ERRORS = {
     "no cloth": ("[time]\ndt = 0.01\n", "cloth", "at least one [[cloth]]"),
     "cloth as plain table": ("[cloth]\nsize = [1, 1]\n", "cloth", "array of tables"),
     "empty output path": (CLOTH + "[output]\nrrd = ''\n", "output.rrd", "empty"),
+    "unknown sewing key": (
+        CLOTH + "[sewing]\npleat_wait_gap = 3\n",
+        "sewing.pleat_wait_gap",
+        "unknown key 'pleat_wait_gap' (did you mean 'pleat_wait_gap_mm'?)",
+    ),
+    "zero ramp start": (CLOTH + "[sewing]\nramp_start = 0\n", "sewing.ramp_start", "must be > 0, got 0"),
+    "held fraction above 1": (CLOTH + "[sewing]\nheld_fraction = 1.5\n", "sewing.held_fraction", "must be in [0, 1]"),
+    "negative pleat wait end": (CLOTH + "[sewing]\npleat_wait_end = -0.1\n", "sewing.pleat_wait_end", ">= 0"),
+    "zero pleat wait gap": (CLOTH + "[sewing]\npleat_wait_gap_mm = 0\n", "sewing.pleat_wait_gap_mm", "> 0"),
+    "nan multiplier step": (CLOTH + "[sewing]\nmultiplier_step = nan\n", "sewing.multiplier_step", "finite"),
+    "string block reach": (CLOTH + "[sewing]\nblock_reach = '10'\n", "sewing.block_reach", "must be a number"),
+    "sewing as array": ("sewing = [1]\n" + CLOTH, "sewing", "must be a table"),
 }
 
 
