@@ -204,11 +204,13 @@ def _direction(ip, C, g, drive, opts, stats, allow_fail):
     exact = ip.correction is not None and opts.off_pattern != "diagonal"
     if exact and (opts.off_pattern == "merge" or ip.coupling_bound() >= 1.0):
         p = solve_once(ip.exact_lower(), rhs, allow_shift=not allow_fail)
+        stats.factorizations += 1
         stats.t_factorization += time.perf_counter() - t0
         if p is None:
             return None
         stats.extra["merged_solves"] = stats.extra.get("merged_solves", 0) + 1
         return -p
+    stats.factorizations += 1
     if allow_fail:
         if not ip.solver.try_factorize(ip.matrix):
             stats.t_factorization += time.perf_counter() - t0

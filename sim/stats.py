@@ -20,6 +20,7 @@ class StepStats:
     energy: float = 0.0
     converged: bool = False
     line_search_steps: int = 0
+    factorizations: int = 0  # numerical Cholesky factorizations (the dominant cost)
     t_assembly: float = 0.0
     t_factorization: float = 0.0
     t_solve: float = 0.0

@@ -32,6 +32,8 @@ def step_summary(stats) -> dict:
         "steps": len(stats),
         "seconds_per_step": total / n,
         "newton_iterations_per_step": iters / n,
+        "factorizations_per_step": sum(s.factorizations for s in stats) / n,
+        "pcg_iterations_per_step": sum(s.extra.get("pcg_iterations", 0) for s in stats) / n,
         "seconds_per_iteration": total / max(iters, 1),
     }
     for key in ("assembly", "factorization", "solve", "ccd", "line_search"):
