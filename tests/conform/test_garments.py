@@ -16,7 +16,7 @@ from garment.bench import conform as conform_bench
 from garment.io.garmentcode import euler_xyz, read_garmentcode
 from garment.io.panels import read_panels
 
-ASSETS = Path(__file__).resolve().parents[1] / ".." / "shared" / "assets"
+ASSETS = Path(__file__).resolve().parents[2] / ".." / "shared" / "assets"
 DRESS_KNIFE = ASSETS / "panels_dress_knife" / "stage.obj"
 SHIRT = ASSETS / "patterns_garmentcode" / "shirt_mean_specification.json"
 DRESS = ASSETS / "patterns_garmentcode" / "dress_pencil_specification.json"

@@ -12,7 +12,7 @@ from sim.embedding import grid_faces
 from sim.sinks import MeshTopology
 from viz.render import BACKGROUND, RenderOptions, output_kind, parse_size, render, scene_bounds
 
-from test_cli import SCENE
+from tests.garment.test_cli import SCENE
 
 SIZE = (160, 120)
 EMPTY = np.zeros((0, 2))

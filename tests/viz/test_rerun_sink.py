@@ -14,7 +14,7 @@ from sim.stats import StepStats
 from viz.recording import load_recording
 from viz.rerun_sink import RerunSink, check_viewer_reachable, control_net_strips, step_scalars
 
-from test_sinks import grid
+from tests.sim.test_sinks import grid
 
 CLOTH = grid("sheet", 5, 4)
 EMPTY = np.zeros((0, 2))
@@ -162,7 +162,7 @@ def test_simulate_serve_and_connect_cli(tmp_path, monkeypatch, capsys):
     import garment.commands.simulate as simulate_cmd
     from garment.cli import main
 
-    from test_cli import SCENE
+    from tests.garment.test_cli import SCENE
 
     scene = tmp_path / "small.toml"
     scene.write_text(SCENE)

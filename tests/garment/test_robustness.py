@@ -22,7 +22,7 @@ from sim.recovery import SplitWarning, StepFailure, step_with_recovery
 from sim.simulator import Simulator
 from viz.recording import load_recording
 
-from test_cli import SCENE  # 7x6 hanging sheet, 4 frames of 2 steps
+from tests.garment.test_cli import SCENE  # 7x6 hanging sheet, 4 frames of 2 steps
 
 CONTACT = """
 [[cloth]]
@@ -202,7 +202,7 @@ def start_run(tmp_path, *extra):
     env = dict(os.environ, NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", ".cache/numba"))
     proc = subprocess.Popen([sys.executable, "-m", "garment.cli", "simulate", str(scene), "-o", str(rrd),
                              "--mesh-dir", str(frames), "-q", *extra],
-                            stderr=subprocess.PIPE, text=True, env=env, cwd=Path(__file__).parent.parent)
+                            stderr=subprocess.PIPE, text=True, env=env, cwd=Path(__file__).resolve().parents[2])
     # Generous: it only catches a run that never starts (a loaded 2-core machine, cold
     # numba cache, takes well over a minute to import and compile).
     deadline = time.monotonic() + 300

@@ -10,7 +10,7 @@ from garment.io.obstacles import load_obstacle
 from garment.scene import loads_scene
 from sim.assembly import BlockPattern
 from sim.simulator import Simulator
-from tests.intersections import intersecting_pairs
+from tests.support.intersections import intersecting_pairs
 
 DROP = """
 [material]

@@ -1,5 +1,5 @@
 """A garment sewn onto a moving character, checked frame by frame with the independent
-brute-force intersection test (tests/intersections.py): the bundled poncho
+brute-force intersection test (tests/support/intersections.py): the bundled poncho
 (assets/scenes/poncho_rumba.toml) closes its 26 cm open shoulder seams during the pre-roll
 and rides the first frames of the Rumba dance."""
 
@@ -13,9 +13,9 @@ import pytest
 
 from garment.scene import load_scene
 from sim.simulator import Simulator
-from tests.intersections import garment_intersections
+from tests.support.intersections import garment_intersections
 
-SCENE = Path(__file__).resolve().parents[1] / "assets" / "scenes" / "poncho_rumba.toml"
+SCENE = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "poncho_rumba.toml"
 
 
 @pytest.mark.slow

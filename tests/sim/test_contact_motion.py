@@ -1,6 +1,6 @@
 """Contact with moving things: animated bodies, spinning obstacles with friction, and
 momentum in a collision between two cloths. Every frame is checked for intersections
-with the independent brute-force test (tests/intersections.py)."""
+with the independent brute-force test (tests/support/intersections.py)."""
 
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ from garment.errors import InputError
 from garment.io.bodies import load_sequence
 from garment.scene import load_scene, loads_scene
 from sim.simulator import Simulator
-from tests.intersections import intersecting_pairs
+from tests.support.intersections import intersecting_pairs
 
-SCENES = Path(__file__).resolve().parents[1] / "assets" / "scenes"
+SCENES = Path(__file__).resolve().parents[2] / "assets" / "scenes"
 
 PUSH = """
 [[cloth]]

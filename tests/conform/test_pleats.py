@@ -16,10 +16,10 @@ from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset
 from garment.model import Panel, PanelSeam
 from garment.scene import load_scene, parse_scene
-from tests.test_conform import polygon_panel
-from tests.test_pleat_sewing import _pleated
+from tests.conform.test_numerics import polygon_panel
+from tests.sim.test_pleat_sewing import _pleated
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RECT = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 0.15], [0.0, 0.15]])
 # A knife pleat in the top edge (y = 0.15) as GarmentCode sews one: roots D and A, tips B
 # and C, three 20 mm layers D-B, B-C, C-A; each tuck sews 14 mm from its roots inwards.

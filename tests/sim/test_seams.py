@@ -10,8 +10,8 @@ from garment.model import Patch
 from garment.scene import ContactSpec
 from sim.seams import SeamSpec
 from sim.simulator import Simulator
-from tests.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
-from tests.test_energies import fd_gradient
+from tests.support.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
+from tests.sim.test_energies import fd_gradient
 
 N = 8
 

@@ -1,6 +1,6 @@
-"""Check exported frames with the independent intersection test (tests/intersections.py).
+"""Check exported frames with the independent intersection test (tests/support/intersections.py).
 
-    python -m tests.check_frames out/dress
+    python -m tests.support.check_frames out/dress
 
 Reads a `--mesh-dir` folder of `npz` frames (`<name>_<frame>.npz`; obstacles are the files
 without `uv`) and prints, per frame: non-finite vertices, cloth-obstacle intersecting
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.intersections import intersecting_triangles, shared_vertices
+from tests.support.intersections import intersecting_triangles, shared_vertices
 
 _NAME = re.compile(r"^(?P<name>.+)_(?P<frame>\d+)\.npz$")
 

@@ -18,8 +18,8 @@ from viz.recording import export_mesh, load_recording
 from viz.render import FrameBuffer
 from viz.rerun_sink import RerunSink
 
-from test_cli import SCENE
-from test_sinks import MESHES, positions
+from tests.garment.test_cli import SCENE
+from tests.sim.test_sinks import MESHES, positions
 
 N = 12  # frames in the recordings that get damaged
 

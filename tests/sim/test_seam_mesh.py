@@ -8,8 +8,8 @@ import pytest
 
 from garment.scene import ContactSpec
 from sim.seam_mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
-from tests.intersections import intersecting_triangles, shared_vertices, stacked_cloth
-from tests.test_seams import _two_panels
+from tests.support.intersections import intersecting_triangles, shared_vertices, stacked_cloth
+from tests.sim.test_seams import _two_panels
 
 U, V, RES = 6.0, 4.0, (11, 8)
 

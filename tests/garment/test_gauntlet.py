@@ -15,7 +15,7 @@ from garment.cli import main
 from garment.errors import InputError
 from garment.io.patchfile import load_patchset
 
-from test_conform_io import bad_panels, write_obj
+from tests.conform.test_io import bad_panels, write_obj
 
 SCENE = """
 [[cloth]]

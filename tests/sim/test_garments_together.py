@@ -1,6 +1,6 @@
 """Several garments in one scene: two bibs, one over the other, sewn over a ball with their
 own seam stiffnesses, checked every step with the independent intersection test
-(tests/intersections.py) between the garments, within each, and against the ball."""
+(tests/support/intersections.py) between the garments, within each, and against the ball."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from garment.scene import parse_scene
 from sim.simulator import Simulator
-from tests.intersections import garment_intersections
+from tests.support.intersections import garment_intersections
 
 SPACING = 0.02
 

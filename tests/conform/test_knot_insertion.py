@@ -11,7 +11,7 @@ from garment.model import BoundaryInterval, Patch, PatchSeam, PatchSet
 from garment.scene import parse_scene
 from sim.embedding import interpolation_matrix
 from sim.simulator import Simulator
-from test_garments_together import _bib
+from tests.sim.test_garments_together import _bib
 
 
 def _surface(X, u, v):

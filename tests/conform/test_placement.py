@@ -19,7 +19,7 @@ from garment.model import Panel
 from garment.scene import GarmentSpec, PlacementSpec, parse_scene
 from sim.embedding import interpolation_matrix
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _grid_panel(a: float, b: float, k: int, world) -> Panel:

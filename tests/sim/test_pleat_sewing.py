@@ -1,7 +1,7 @@
 """A knife pleat sewn shut from a folded placement (conform/pleats.py): a skirt panel whose
 top edge carries a GarmentCode-style knife pleat (two interleaved tucks) and a band sewn
 along that edge to the flat cloth and the pleat's face. Checked every step with the
-independent intersection test (tests/intersections.py)."""
+independent intersection test (tests/support/intersections.py)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 from garment.scene import parse_scene
 from sim.simulator import Simulator
-from tests.intersections import garment_intersections
+from tests.support.intersections import garment_intersections
 
 DX, DZ = 0.005, 0.02  # grid spacing along and across the pleated edge
 
