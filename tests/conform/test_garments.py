@@ -6,8 +6,6 @@ spans. The < 2 s per panel target is timed by `garment bench conform-garments`, 
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -16,10 +14,12 @@ from garment.bench import conform as conform_bench
 from garment.io.garmentcode import euler_xyz, read_garmentcode
 from garment.io.panels import read_panels
 
-ASSETS = Path(__file__).resolve().parents[2] / ".." / "shared" / "assets"
-DRESS_KNIFE = ASSETS / "panels_dress_knife" / "stage.obj"
-SHIRT = ASSETS / "patterns_garmentcode" / "shirt_mean_specification.json"
-DRESS = ASSETS / "patterns_garmentcode" / "dress_pencil_specification.json"
+from tests.support.panels import interval_length
+from tests.support.paths import SHARED_ASSETS
+
+DRESS_KNIFE = SHARED_ASSETS / "panels_dress_knife" / "stage.obj"
+SHIRT = SHARED_ASSETS / "patterns_garmentcode" / "shirt_mean_specification.json"
+DRESS = SHARED_ASSETS / "patterns_garmentcode" / "dress_pencil_specification.json"
 
 needs_assets = pytest.mark.skipif(not DRESS_KNIFE.exists() or not SHIRT.exists(), reason="shared assets missing")
 
@@ -133,8 +133,6 @@ def test_dress_skirt_back_is_split_at_its_darts():
     """skirt_back (dress_pencil_specification.json): four darts of 19-21 cm in a 50 cm waist.
     One patch was 102 x 36, Jacobian ratio 0.06-22, reduced-rule area error 0.18 %, 5-7 s;
     cut from each dart tip straight down to the hem it becomes five quads."""
-    from conform.curve_fit import evaluate
-
     panels, seams = read_garmentcode(DRESS)
     chosen = [p for p in panels if p.name == "skirt_back"]
     ps = conform_all(chosen, seams, ConformOptions(knot_span=0.02))
@@ -155,15 +153,8 @@ def test_dress_skirt_back_is_split_at_its_darts():
     # tolerance), so welding the pieces does not stretch them.
     for k, c in enumerate(cuts):
         (seam,) = [s for s in ps.seams if s.name == f"skirt_back.cut{k}"]
-        lengths = []
-        for patch, ivs in ((seam.patch_a, seam.intervals_a), (seam.patch_b, seam.intervals_b)):
-            X = ps.patch(patch).rest
-            rows = {"v0": X[:, 0], "u1": X[-1, :], "v1": X[:, -1], "u0": X[0, :]}
-            L = 0.0
-            for iv in ivs:
-                t = np.linspace(min(iv.t0, iv.t1), max(iv.t0, iv.t1), 400)
-                L += np.linalg.norm(np.diff(evaluate(rows[iv.side], t), axis=0), axis=1).sum()
-            lengths.append(L)
+        lengths = [sum(interval_length(ps.patch(patch).rest, iv) for iv in ivs)
+                   for patch, ivs in ((seam.patch_a, seam.intervals_a), (seam.patch_b, seam.intervals_b))]
         assert lengths[0] == pytest.approx(1e-3 * c["length_mm"], abs=1e-3)
         assert lengths[1] == pytest.approx(1e-3 * c["length_mm"], abs=1e-3)
     # Each dart now sews two neighbouring pieces (seams to panels not converted here drop).

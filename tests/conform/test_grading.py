@@ -9,7 +9,8 @@ from conform import ConformOptions
 from conform.grading import RATIO, Request, grade
 from conform.pipeline import conform_all
 from garment.model import PanelSeam
-from tests.conform.test_numerics import polygon_panel
+
+from tests.support.panels import polygon_panel
 
 RECT = np.array([[0.0, 0.0], [0.4, 0.0], [0.4, 0.2], [0.0, 0.2]])
 LENGTHS = np.array([0.4, 0.2, 0.4, 0.2])

@@ -16,73 +16,11 @@ from garment.cli import main
 from garment.errors import InputError
 from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset, save_patchset
-from sim.bspline import basis_matrix
 
-
-def grid(nx, ny, size=(0.2, 0.1), origin=(0.0, 0.0)):
-    """Vertices (V, 2) and CCW triangles of an nx x ny vertex grid."""
-    x, y = np.meshgrid(np.linspace(0, size[0], nx), np.linspace(0, size[1], ny), indexing="ij")
-    V = np.stack([x.ravel(), y.ravel()], 1) + origin
-    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
-    a = (i * ny + j).ravel()
-    F = np.concatenate([np.stack([a, a + ny, a + ny + 1], 1), np.stack([a, a + ny + 1, a + 1], 1)])
-    return V, F
-
-
-def write_obj(path, panels, seams=()):
-    """panels: [(name, V2 (k, 2), F (f, 3) local)] -> OBJ with v (lifted to z = 0.5 y,
-    a sheared placement), vt = rest, one group per panel; seams: [[(i, j, k, w), ...]]."""
-    lines, offset = [], 0
-    faces = []
-    for name, V, F in panels:
-        for x, y in V:
-            lines.append(f"v {x:.9g} {y:.9g} {0.5 * y:.9g}")
-            lines.append(f"vt {x:.9g} {y:.9g}")
-        faces.append((name, F + offset + 1))
-        offset += len(V)
-    for name, F in faces:
-        lines.append(f"g {name}")
-        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in F]
-    for stitches in seams:
-        lines.append(f"seam {len(stitches)}")
-        lines += [f"stitch {i} {j} {k} {w}" for i, j, k, w in stitches]
-    path.write_text("\n".join(lines) + "\n")
-    return path
+from tests.support.panels import bad_panels, grid, rest_points, write_obj
 
 
 # ------------------------------------------------------------------------------ bad panels
-
-
-def bad_panels():
-    V, F = grid(6, 5)
-    out = {}
-    # A hole: drop the two triangles of one interior cell.
-    cell = 2 * 4 + 2
-    keep = np.setdiff1d(np.arange(len(F)), [cell, cell + len(F) // 2])
-    out["hole"] = (V, F[keep], "hole")
-    # Two separate pieces.
-    V2, F2 = grid(3, 3, (0.05, 0.05), (0.5, 0.0))
-    out["two_pieces"] = (np.concatenate([V, V2]), np.concatenate([F, F2 + len(V)]), "2 boundary loops")
-    # A non-manifold edge: a third triangle on an interior edge.
-    extra = np.concatenate([V, [[0.05, 0.2]]])
-    out["nonmanifold"] = (extra, np.concatenate([F, [[F[7, 0], F[7, 1], len(V)]]]), "non-manifold edge")
-    # A degenerate (zero-area) triangle.
-    Vd = np.concatenate([V, [[0.1, -0.02], [0.14, -0.02], [0.18, -0.02]]])
-    out["degenerate"] = (Vd, np.concatenate([F, [[len(V), len(V) + 1, len(V) + 2]]]), "degenerate")
-    # Folded layout: one triangle flipped.
-    Ff = F.copy()
-    Ff[3] = Ff[3, ::-1]
-    out["folded"] = (V, Ff, "folds over")
-    # A band spiralling past a full turn: every triangle counter-clockwise, outline crossing.
-    t = np.linspace(0, 2.4 * np.pi, 40)
-    r0, r1 = 0.1 + 0.003 * t, 0.14 + 0.003 * t  # 2 cm further out per turn, 4 cm wide
-    Vs = np.concatenate([np.stack([r0 * np.cos(t), r0 * np.sin(t)], 1), np.stack([r1 * np.cos(t), r1 * np.sin(t)], 1)])
-    k = np.arange(39)
-    Fs = np.concatenate([np.stack([k, k + 1, k + 41], 1), np.stack([k, k + 41, k + 40], 1)])
-    out["spiral"] = (Vs, Fs, "crosses itself")
-    # A single triangle: three boundary vertices.
-    out["triangle"] = (np.array([[0, 0], [0.1, 0], [0, 0.1]], float), np.array([[0, 1, 2]]), "only 3 boundary vertices")
-    return out
 
 
 @pytest.mark.parametrize("name", list(bad_panels()))
@@ -235,16 +173,11 @@ def test_seam_points_map_back_onto_the_rest_points(two_panels_and_a_hole):
     ps = conform_all(panels[:2], seams, ConformOptions(knot_span=0.03))
     (seam,) = ps.seams
     for name, uv, pts in ((seam.patch_a, seam.uv_a, seams[0].points_a), (seam.patch_b, seam.uv_b, seams[0].points_b)):
-        X = ps.patch(name).rest
-        n, m = X.shape[:2]
-        P = np.einsum("ki,kj,ijd->kd", basis_matrix(uv[:, 0], n), basis_matrix(uv[:, 1], m), X)
-        np.testing.assert_allclose(P, pts, atol=1e-9)
+        np.testing.assert_allclose(rest_points(ps.patch(name).rest, uv), pts, atol=1e-9)
     # Inverting the rest map finds interior points too.
     X = ps.patch("front").rest
     uv = invert(X, np.array([[0.05, 0.05], [0.17, 0.02]]))
-    n, m = X.shape[:2]
-    P = np.einsum("ki,kj,ijd->kd", basis_matrix(uv[:, 0], n), basis_matrix(uv[:, 1], m), X)
-    np.testing.assert_allclose(P, [[0.05, 0.05], [0.17, 0.02]], atol=1e-10)
+    np.testing.assert_allclose(rest_points(X, uv), [[0.05, 0.05], [0.17, 0.02]], atol=1e-10)
 
 
 def test_flat_meshes_in_other_formats(tmp_path):

@@ -11,7 +11,8 @@ from garment.model import BoundaryInterval, Patch, PatchSeam, PatchSet
 from garment.scene import parse_scene
 from sim.embedding import interpolation_matrix
 from sim.simulator import Simulator
-from tests.sim.test_garments_together import _bib
+
+from tests.support.panels import bib
 
 
 def _surface(X, u, v):
@@ -45,8 +46,8 @@ def test_refined_nets_and_seams_describe_the_same_garment():
 
 
 def test_a_sewn_garment_continues_exactly_at_half_the_span(tmp_path):
-    bib = _bib(tmp_path / "bib.obj", 0.24, 0.16, 0.12, 0.13)
-    doc = {"garment": [{"name": "bib", "source": str(bib), "knot_span_mm": 40}],
+    source = bib(tmp_path / "bib.obj", 0.24, 0.16, 0.12, 0.13)
+    doc = {"garment": [{"name": "bib", "source": str(source), "knot_span_mm": 40}],
            "obstacle": [{"name": "ball", "sphere": {"radius": 0.1, "subdivisions": 3}}],
            "contact": {"dhat": 1e-3, "kappa": "adaptive"}, "time": {"dt": 0.01, "frames": 10, "preroll": 0.05}}
     scene = parse_scene(doc, tmp_path / "bib.toml")

@@ -16,17 +16,7 @@ from conform.mips import refine as mips_refine
 from garment.model import Panel, Patch
 from sim.bspline import basis_matrix
 
-
-def polygon_panel(name, poly, spacing=0.005, hints=True):
-    """An outline panel sampled along the polygon, its vertices as corner hints."""
-    poly = np.asarray(poly, float)
-    pts, idx = [], []
-    for k in range(len(poly)):
-        a, b = poly[k], poly[(k + 1) % len(poly)]
-        c = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
-        idx.append(sum(len(p) for p in pts))
-        pts.append(a + (np.arange(c) / c)[:, None] * (b - a))
-    return Panel(name=name, source="test", rest=np.concatenate(pts), corner_hints=np.array(idx) if hints else None)
+from tests.support.panels import polygon_panel
 
 
 # ------------------------------------------------------------------------ curves and nets

@@ -19,16 +19,13 @@ from garment.model import Panel
 from garment.scene import GarmentSpec, PlacementSpec, parse_scene
 from sim.embedding import interpolation_matrix
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.panels import grid
+from tests.support.paths import ASSETS
 
 
 def _grid_panel(a: float, b: float, k: int, world) -> Panel:
     """An a x b rectangle meshed with (k+1)^2 vertices, placed by world(rest) -> (V, 3)."""
-    s, t = np.meshgrid(np.linspace(0, a, k + 1), np.linspace(0, b, k + 1), indexing="ij")
-    rest = np.c_[s.ravel(), t.ravel()]
-    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
-    v = (i * (k + 1) + j).ravel()
-    faces = np.r_[np.c_[v, v + k + 1, v + k + 2], np.c_[v, v + k + 2, v + 1]]
+    rest, faces = grid(k + 1, k + 1, (a, b))
     return Panel(name="p", source="test", rest=rest, faces=faces, world=world(rest), vertex_ids=np.arange(len(rest)))
 
 
@@ -70,7 +67,7 @@ def _obj(path: Path, V: np.ndarray) -> Path:
     return path
 
 
-PANELS = ROOT / "assets" / "garments" / "dress_knife.obj"
+PANELS = ASSETS / "garments" / "dress_knife.obj"
 
 
 def _source_vertices() -> np.ndarray:

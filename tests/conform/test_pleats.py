@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -16,10 +14,10 @@ from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset
 from garment.model import Panel, PanelSeam
 from garment.scene import load_scene, parse_scene
-from tests.conform.test_numerics import polygon_panel
-from tests.sim.test_pleat_sewing import _pleated
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.support.panels import pleated, polygon_panel
+from tests.support.paths import ASSETS
+
 RECT = np.array([[0.0, 0.0], [0.3, 0.0], [0.3, 0.15], [0.0, 0.15]])
 # A knife pleat in the top edge (y = 0.15) as GarmentCode sews one: roots D and A, tips B
 # and C, three 20 mm layers D-B, B-C, C-A; each tuck sews 14 mm from its roots inwards.
@@ -123,7 +121,7 @@ def test_a_panel_whose_pleats_are_too_shallow_for_the_seam_span_is_given_a_finer
 
 
 def test_dress_knife_bodice_pleats_fold_at_their_own_span_not_at_the_seam_span():
-    panels, seams = read_panels(ROOT / "assets" / "garments" / "dress_knife.obj")
+    panels, seams = read_panels(ASSETS / "garments" / "dress_knife.obj")
     spans = {p.name: pleats.fold_span(p.name, seams, 0.008) for p in panels}
     # Their shallowest pleats (7.3 and 6.2 mm) would ask for 4.8 and 4.1 mm: held at 5 mm.
     assert {n: h for n, h in spans.items() if h < 0.008} == pytest.approx({"panel6": 0.005, "panel13": 0.005})
@@ -141,7 +139,7 @@ def test_dress_knife_bodice_pleats_fold_at_their_own_span_not_at_the_seam_span()
 
 
 def test_dress_knife_folds_its_skirt_pleats_and_leaves_the_bodice_pleats_flat():
-    panels, seams = read_panels(ROOT / "assets" / "garments" / "dress_knife.obj")
+    panels, seams = read_panels(ASSETS / "garments" / "dress_knife.obj")
     warps, notes = pleats.fold_panels(panels, seams, 0.008)
     assert sorted(warps) == ["panel11", "panel4"]
     for name, warp in warps.items():
@@ -181,7 +179,7 @@ def test_a_pleated_panel_conforms_to_a_folded_net_with_little_strain():
 
 @pytest.mark.parametrize("key", ["fold_pleats", "pleat_wait"])
 def test_scene_garments_take_pleat_switches_as_booleans(key):
-    source = str(ROOT / "assets" / "garments" / "dress_knife.obj")
+    source = str(ASSETS / "garments" / "dress_knife.obj")
     scene = parse_scene({"garment": [{"source": source, key: True}]}, "dress.toml")
     assert getattr(scene.garments[0], key)
     assert not getattr(parse_scene({"garment": [{"source": source}]}, "dress.toml").garments[0], key)
@@ -190,13 +188,13 @@ def test_scene_garments_take_pleat_switches_as_booleans(key):
 
 
 def test_the_bundled_dress_scene_folds_its_pleats():
-    scene = load_scene(ROOT / "assets" / "scenes" / "dress_rumba.toml")
+    scene = load_scene(ASSETS / "scenes" / "dress_rumba.toml")
     assert [g.fold_pleats for g in scene.garments] == [True]
     assert [g.pleat_wait for g in scene.garments] == [True]
 
 
 def test_garment_conform_folds_pleats_on_request(tmp_path):
-    source = _pleated(tmp_path / "pleat.obj")
+    source = pleated(tmp_path / "pleat.obj")
     for flag, out in (([], "flat"), (["--fold-pleats"], "folded")):
         code = main(["conform", str(source), "-o", str(tmp_path / out), "-q", "--knot-span", "40",
                      "--seam-span", "8"] + flag)

@@ -11,12 +11,12 @@ import pytest
 
 from conform import ConformOptions, conform_all
 from conform.boundary import extract_outline
-from conform.curve_fit import evaluate
 from conform.split import darts_of, split_panel, split_seams
 from garment.cli import main
 from garment.io.garmentcode import read_garmentcode
 from garment.io.patchfile import load_patchset, save_patchset
-from sim.bspline import basis_matrix
+
+from tests.support.panels import interval_length, polygon_points, rest_points
 
 
 def skirt_pattern(path, dart_depth=20.0, dart_width=3.0, with_band=True):
@@ -38,19 +38,6 @@ def skirt_pattern(path, dart_depth=20.0, dart_width=3.0, with_band=True):
     path.write_text(json.dumps({"pattern": {"panels": panels, "stitches": stitches},
                                 "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
     return path
-
-
-def interval_length(X: np.ndarray, iv) -> float:
-    """Rest length (m) of the patch boundary over a boundary interval."""
-    n, m = X.shape[:2]
-    row = {"v0": X[:, 0], "u1": X[-1, :], "v1": X[:, -1], "u0": X[0, :]}[iv.side]
-    t = np.linspace(min(iv.t0, iv.t1), max(iv.t0, iv.t1), 400)
-    return float(np.linalg.norm(np.diff(evaluate(row, t), axis=0), axis=1).sum())
-
-
-def rest_points(X: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    n, m = X.shape[:2]
-    return np.einsum("ki,kj,ijd->kd", basis_matrix(uv[:, 0], n), basis_matrix(uv[:, 1], m), X)
 
 
 def test_cuts_continue_the_darts_and_pieces_keep_the_area(tmp_path):
@@ -192,12 +179,7 @@ def test_a_darted_mesh_panel_is_split_and_lifted_from_its_mesh():
     from garment.model import Panel, PanelSeam
 
     corners = np.array([[0, 0], [0.5, 0], [0.5, 0.6], [0.265, 0.6], [0.25, 0.35], [0.235, 0.6], [0, 0.6]])
-    pts = []
-    for k in range(len(corners)):
-        a, b = corners[k], corners[(k + 1) % len(corners)]
-        c = max(int(np.ceil(np.linalg.norm(b - a) / 0.02)), 1)
-        pts.append(a + (np.arange(c) / c)[:, None] * (b - a))
-    rest = np.concatenate(pts)
+    rest, _ = polygon_points(corners, 0.02)
     faces = ear_clip(rest)
     world = np.column_stack([rest, 0.5 * rest[:, 1]])  # a sheared placement: lift is exact
     panel = Panel("skirt", "test", rest, faces=faces, world=world)

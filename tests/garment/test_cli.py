@@ -13,33 +13,17 @@ from garment.scene import loads_scene
 from sim.simulator import Simulator
 from viz.rerun_sink import read_rrd_positions
 
-SCENE = """
-[[cloth]]
-name = "sheet"
-size = [0.4, 0.3]
-control_points = [7, 6]
-origin = [0, 0, 1]
-axis_u = [1, 0, 0]
-axis_v = [0, 0, -1]
-
-[[pin]]
-corners = ["u0v0", "u1v0"]
-
-[time]
-dt = 0.01
-frames = 4
-steps_per_frame = 2
-"""
+from tests.support.scenes import HANGING_SHEET
 
 
 def test_simulate_writes_recording_and_meshes(tmp_path):
     scene = tmp_path / "small.toml"
-    scene.write_text(SCENE)
+    scene.write_text(HANGING_SHEET)
     rrd, frames = tmp_path / "run.rrd", tmp_path / "frames"
     assert main(["simulate", str(scene), "-o", str(rrd), "--mesh-dir", str(frames), "-q"]) == 0
 
     # The same scene from Python gives the same final frame: the CLI is a thin layer.
-    sim = Simulator.from_scene(loads_scene(SCENE))
+    sim = Simulator.from_scene(loads_scene(HANGING_SHEET))
     for _ in range(8):
         sim.step()
     expected = sim.positions("sheet")
@@ -58,11 +42,11 @@ def test_simulate_writes_recording_and_meshes(tmp_path):
 @pytest.mark.parametrize(
     "text, fragment",
     [
-        (SCENE.replace("dt = 0.01", "dtt = 0.01"), "time.dtt"),
-        (SCENE.replace("dt = 0.01", "dt = -0.01"), "time.dt"),
-        (SCENE.replace("[7, 6]", "[4, 6]"), "cloth[0].control_points"),
-        (SCENE + "\n[material]\nnu = 0.5\n", "material.nu"),
-        (SCENE + "\n[material]\nE_st = nan\n", "material.E_st"),
+        (HANGING_SHEET.replace("dt = 0.01", "dtt = 0.01"), "time.dtt"),
+        (HANGING_SHEET.replace("dt = 0.01", "dt = -0.01"), "time.dt"),
+        (HANGING_SHEET.replace("[7, 6]", "[4, 6]"), "cloth[0].control_points"),
+        (HANGING_SHEET + "\n[material]\nnu = 0.5\n", "material.nu"),
+        (HANGING_SHEET + "\n[material]\nE_st = nan\n", "material.E_st"),
     ],
 )
 def test_bad_scene_exits_with_message(tmp_path, capsys, text, fragment):

@@ -6,16 +6,17 @@ and rides the first frames of the Rumba dance."""
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from garment.scene import load_scene
 from sim.simulator import Simulator
-from tests.support.intersections import garment_intersections
 
-SCENE = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "poncho_rumba.toml"
+from tests.support.intersections import garment_intersections
+from tests.support.paths import SCENES
+
+SCENE = SCENES / "poncho_rumba.toml"
 
 
 @pytest.mark.slow

@@ -15,7 +15,7 @@ from garment.cli import main
 from garment.errors import InputError
 from garment.io.patchfile import load_patchset
 
-from tests.conform.test_io import bad_panels, write_obj
+from tests.support.panels import bad_panels, write_obj
 
 SCENE = """
 [[cloth]]

@@ -7,7 +7,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,7 +21,8 @@ from sim.recovery import SplitWarning, StepFailure, step_with_recovery
 from sim.simulator import Simulator
 from viz.recording import load_recording
 
-from tests.garment.test_cli import SCENE  # 7x6 hanging sheet, 4 frames of 2 steps
+from tests.support.paths import ROOT
+from tests.support.scenes import HANGING_SHEET
 
 CONTACT = """
 [[cloth]]
@@ -110,7 +110,7 @@ def failing_above(sim, dt_max):
 
 
 def test_a_failing_step_is_split_in_halves():
-    scene = loads_scene(SCENE)
+    scene = loads_scene(HANGING_SHEET)
     sim, ref = Simulator.from_scene(scene), Simulator.from_scene(scene)
     failing_above(sim, 0.005)
     with pytest.warns(SplitWarning, match="retrying as two steps of 0.005 s"):
@@ -129,7 +129,7 @@ def test_a_failing_step_is_split_in_halves():
 
 
 def test_failure_at_the_floor_names_frame_and_cause_and_keeps_a_checkpoint(tmp_path):
-    scene = loads_scene(SCENE)
+    scene = loads_scene(HANGING_SHEET)
     sim = Simulator.from_scene(scene)
     step = sim.step
 
@@ -163,7 +163,7 @@ def test_cli_failure_exits_3_with_valid_outputs(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(Simulator, "step", explode)
     scene = tmp_path / "s.toml"
-    scene.write_text(SCENE)
+    scene.write_text(HANGING_SHEET)
     rrd = tmp_path / "run.rrd"
     assert main(["simulate", str(scene), "-o", str(rrd), "-q", "--max-splits", "1"]) == 3
     err = capsys.readouterr().err
@@ -173,7 +173,7 @@ def test_cli_failure_exits_3_with_valid_outputs(tmp_path, capsys, monkeypatch):
 
 
 def test_stop_request_discards_the_partial_frame(tmp_path):
-    scene = loads_scene(SCENE)
+    scene = loads_scene(HANGING_SHEET)
     sim, ref = Simulator.from_scene(scene), Simulator.from_scene(scene)
     calls = []
 
@@ -192,7 +192,7 @@ def test_stop_request_discards_the_partial_frame(tmp_path):
     assert np.array_equal(sim.C, ref.C)
 
 
-LONG = SCENE.replace("frames = 4", "frames = 5000").replace("steps_per_frame = 2", "steps_per_frame = 1")
+LONG = HANGING_SHEET.replace("frames = 4", "frames = 5000").replace("steps_per_frame = 2", "steps_per_frame = 1")
 
 
 def start_run(tmp_path, *extra):
@@ -202,7 +202,7 @@ def start_run(tmp_path, *extra):
     env = dict(os.environ, NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", ".cache/numba"))
     proc = subprocess.Popen([sys.executable, "-m", "garment.cli", "simulate", str(scene), "-o", str(rrd),
                              "--mesh-dir", str(frames), "-q", *extra],
-                            stderr=subprocess.PIPE, text=True, env=env, cwd=Path(__file__).resolve().parents[2])
+                            stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
     # Generous: it only catches a run that never starts (a loaded 2-core machine, cold
     # numba cache, takes well over a minute to import and compile).
     deadline = time.monotonic() + 300
@@ -247,12 +247,12 @@ def test_second_signal_exits_at_once(tmp_path):
 
 
 def test_periodic_checkpoints_and_nothing_left_to_do(tmp_path, capsys):
-    scene = loads_scene(SCENE)
+    scene = loads_scene(HANGING_SHEET)
     path = tmp_path / "run.ckpt.npz"
     result = drive(Simulator.from_scene(scene), 4, 2, checkpoint=CheckpointPolicy(path, 2, "h"))
     assert result.checkpoints == 2 and read_checkpoint(path).frame == 4  # after frame 2, and at the end
     toml = tmp_path / "s.toml"
-    toml.write_text(SCENE)
+    toml.write_text(HANGING_SHEET)
     rrd = tmp_path / "run.rrd"
     assert main(["simulate", str(toml), "-o", str(rrd), "-q"]) == 0
     assert main(["simulate", str(toml), "-o", str(rrd), "--resume"]) == 0

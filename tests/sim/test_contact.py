@@ -10,28 +10,9 @@ from garment.io.obstacles import load_obstacle
 from garment.scene import loads_scene
 from sim.assembly import BlockPattern
 from sim.simulator import Simulator
-from tests.support.intersections import intersecting_pairs
 
-DROP = """
-[material]
-E_bd = 8e3
-[[cloth]]
-name = "sheet"
-size = [0.4, 0.4]
-control_points = [10, 10]
-origin = [-0.2, -0.2, {height}]
-[[obstacle]]
-name = "ball"
-sphere = {{radius = 0.08, center = [0.0, 0.0, 0.08], subdivisions = 2}}
-[[obstacle]]
-name = "ground"
-plane = {{point = [0, 0, 0], normal = [0, 0, 1], size = 2.0}}
-[contact]
-dhat = 1e-3
-kappa = 1e5
-[time]
-dt = 0.01
-"""
+from tests.support.intersections import intersecting_pairs
+from tests.support.scenes import DROP
 
 
 def test_intersection_check_detects_crossings():

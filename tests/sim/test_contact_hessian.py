@@ -11,7 +11,8 @@ from garment.scene import loads_scene
 from sim.assembly import BlockPattern, add_dof_matrix
 from sim.contact.hessian_map import ContactHessianMap
 from sim.simulator import Simulator
-from tests.sim.test_contact import DROP
+
+from tests.support.scenes import DROP
 
 
 @pytest.fixture(scope="module")

@@ -14,9 +14,9 @@ from garment.errors import InputError
 from garment.io.bodies import load_sequence
 from garment.scene import load_scene, loads_scene
 from sim.simulator import Simulator
-from tests.support.intersections import intersecting_pairs
 
-SCENES = Path(__file__).resolve().parents[2] / "assets" / "scenes"
+from tests.support.intersections import intersecting_pairs
+from tests.support.paths import SCENES
 
 PUSH = """
 [[cloth]]

@@ -4,46 +4,19 @@ own seam stiffnesses, checked every step with the independent intersection test
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import scipy.sparse as sp
 
 from garment.scene import parse_scene
 from sim.simulator import Simulator
+
 from tests.support.intersections import garment_intersections
-
-SPACING = 0.02
-
-
-def _bib(path: Path, width: float, height: float, plane: float, top: float) -> Path:
-    """A panel OBJ (garment/io/panels.py): two width x height panels at y = +-plane whose
-    top edges (z = top) are sewn together outside a central neck opening."""
-    nx, nz = round(width / SPACING) + 1, round(height / SPACING) + 1
-    s, t = np.meshgrid(np.linspace(0, width, nx), np.linspace(0, height, nz), indexing="ij")
-    flat = np.c_[s.ravel(), t.ravel()]
-    i, j = np.meshgrid(np.arange(nx - 1), np.arange(nz - 1), indexing="ij")
-    v = (i * nz + j).ravel()
-    tris = np.r_[np.c_[v, v + nz, v + nz + 1], np.c_[v, v + nz + 1, v + 1]]
-    n, lines = len(flat), []
-    for y in (plane, -plane):
-        lines += [f"v {x - width / 2:.6f} {y:.6f} {top - height + z:.6f}" for x, z in flat]
-    lines += [f"vt {x:.6f} {z:.6f}" for _ in range(2) for x, z in flat]
-    for k, name in enumerate(("front", "back")):
-        lines.append(f"g {name}")
-        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in tris + 1 + k * n]
-    top_ids = np.arange(nx) * nz + nz - 1
-    x = flat[top_ids, 0] - width / 2
-    for side in (x <= -0.05, x >= 0.05):
-        lines.append(f"seam {side.sum()}")
-        lines += [f"stitch {a} {a + n} {a + n} 0" for a in top_ids[side]]
-    path.write_text("\n".join(lines) + "\n")
-    return path
+from tests.support.panels import bib
 
 
 def test_two_garments_sew_and_layer_over_a_ball_without_intersections(tmp_path):
-    inner = _bib(tmp_path / "inner.obj", 0.24, 0.16, 0.12, 0.13)
-    outer = _bib(tmp_path / "outer.obj", 0.30, 0.18, 0.15, 0.16)
+    inner = bib(tmp_path / "inner.obj", 0.24, 0.16, 0.12, 0.13)
+    outer = bib(tmp_path / "outer.obj", 0.30, 0.18, 0.15, 0.16)
     doc = {
         "garment": [{"name": "inner", "source": str(inner), "knot_span_mm": 40, "seam_stiffness": 1e6},
                     {"name": "outer", "source": str(outer), "knot_span_mm": 40, "seam_stiffness": 2e5}],

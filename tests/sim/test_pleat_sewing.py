@@ -5,64 +5,19 @@ independent intersection test (tests/support/intersections.py)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from garment.scene import parse_scene
 from sim.simulator import Simulator
+
 from tests.support.intersections import garment_intersections
-
-DX, DZ = 0.005, 0.02  # grid spacing along and across the pleated edge
-
-
-def _grid(width: float, height: float):
-    nx, nz = round(width / DX) + 1, round(height / DZ) + 1
-    s, t = np.meshgrid(np.linspace(0, width, nx), np.linspace(0, height, nz), indexing="ij")
-    i, j = np.meshgrid(np.arange(nx - 1), np.arange(nz - 1), indexing="ij")
-    v = (i * nz + j).ravel()
-    return np.c_[s.ravel(), t.ravel()], np.r_[np.c_[v, v + nz, v + nz + 1], np.c_[v, v + nz + 1, v + 1]], nz
-
-
-def _pleated(path: Path, face: str = "last") -> Path:
-    """skirt: 30 x 12 cm, its top edge pleated at x = 10-16 cm (roots 10 and 16, tips 12
-    and 14 cm; each tuck sews 15 mm from its roots); band: 26 x 4 cm 1 cm above, sewn to
-    the skirt's top edge but for the pleat's under layers: the face is its last layer
-    (14-16 cm) or its first (10-12 cm, the fold mirrored)."""
-    skirt, skirt_tris, nz = _grid(0.30, 0.12)
-    band, band_tris, nzb = _grid(0.26, 0.04)
-    lines = [f"v {x:.6f} 0 {z:.6f}" for x, z in skirt]
-    lines += [f"v {x + 0.02:.6f} 0.01 {z + 0.13:.6f}" for x, z in band]
-    lines += [f"vt {x:.6f} {z:.6f}" for x, z in skirt] + [f"vt {x:.6f} {z + 0.2:.6f}" for x, z in band]
-    n = len(skirt)
-    for name, tris, off in (("skirt", skirt_tris, 0), ("band", band_tris, n)):
-        lines.append(f"g {name}")
-        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in tris + 1 + off]
-
-    def top(x):  # skirt vertex on the top edge at x
-        return round(x / DX) * nz + nz - 1
-
-    def bottom(x):  # band vertex on its bottom edge at x
-        return n + round(x / DX) * nzb
-
-    def seam(pairs):
-        lines.append(f"seam {len(pairs)}")
-        lines.extend(f"stitch {a} {b} {b} 0" for a, b in pairs)
-
-    k = np.arange(4) * DX
-    seam([(top(0.14 - d), top(0.10 + d)) for d in k])  # tuck: layer 2 onto layer 1
-    seam([(top(0.16 - d), top(0.12 + d)) for d in k])  # tuck: layer 3 onto layer 2
-    cut = 0.10 if face == "last" else 0.12  # the band takes layer 3 or layer 1
-    seam([(bottom(x), top(x)) for x in np.arange(0.0, cut + 1e-9, DX)])
-    seam([(bottom(x), top(x + 0.04)) for x in np.arange(cut, 0.26 + 1e-9, DX)])
-    path.write_text("\n".join(lines) + "\n")
-    return path
+from tests.support.panels import pleated
 
 
 def _scene(tmp_path, face, **garment):
     doc = {
-        "garment": [{"name": "g", "source": str(_pleated(tmp_path / "pleat.obj", face)), "knot_span_mm": 40,
+        "garment": [{"name": "g", "source": str(pleated(tmp_path / "pleat.obj", face)), "knot_span_mm": 40,
                      "seam_span_mm": 8, "fold_pleats": True, "seam_stiffness": 1e6, **garment}],
         "contact": {"dhat": 1e-3, "kappa": "adaptive", "mu": 0.0},
         "time": {"dt": 0.01, "frames": 30},

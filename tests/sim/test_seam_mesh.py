@@ -8,8 +8,9 @@ import pytest
 
 from garment.scene import ContactSpec
 from sim.seam_mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
+
 from tests.support.intersections import intersecting_triangles, shared_vertices, stacked_cloth
-from tests.sim.test_seams import _two_panels
+from tests.support.scenes import two_panels
 
 U, V, RES = 6.0, 4.0, (11, 8)
 
@@ -95,7 +96,7 @@ def test_matched_points_keep_corners_and_pair_both_sides():
 
 
 def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
-    sim = _two_panels(0.03)
+    sim = two_panels(0.03)
     merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(6)]
     n = len(sim.seam_contact.pairs)
     assert merged == [0, n, 0, 0, 0, 0] and (sim.seam_contact.state == 1).all()  # shut once all are within d_hat
@@ -115,11 +116,11 @@ def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
 def test_resume_after_the_seams_merged(tmp_path):
     from sim.checkpoint import read_checkpoint, restore, write_checkpoint
 
-    sim = _two_panels(0.03)
+    sim = two_panels(0.03)
     for _ in range(3):
         sim.step()
     ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim, 3, "sewn"))
-    resumed = _two_panels(0.03)
+    resumed = two_panels(0.03)
     restore(resumed, ck.state)
     assert (resumed.seam_contact.state == 1).all()
     sim.step()
@@ -128,8 +129,8 @@ def test_resume_after_the_seams_merged(tmp_path):
 
 
 def test_band_seams_keep_grids_and_exclude_pairs_near_the_seam():
-    merged = _two_panels(0.03)
-    band = _two_panels(0.03, contact=ContactSpec(enabled=True, adaptive_kappa=True, seams="band"))
+    merged = two_panels(0.03)
+    band = two_panels(0.03, contact=ContactSpec(enabled=True, adaptive_kappa=True, seams="band"))
     assert len(band.seam_contact.pairs) == 0 and band.seam_contact.excluded
     assert [len(p.topology.faces) for p in band.pieces] == [2 * 10 * 10] * 2  # the plain 11 x 11 grids
     assert len(merged.seam_contact.pairs) > 0 and not merged.seam_contact.excluded
@@ -141,7 +142,7 @@ def test_crossings_away_from_the_merged_pairs_stop_only_a_fresh_state_sewing(mon
     # merge made; they must not stop its seams from sewing, as they must for a fresh run.
     import sim.contact.seams as seams_mod
 
-    sim = _two_panels(0.03)
+    sim = two_panels(0.03)
     sim.seam_contact.keep_crossings = keep
     monkeypatch.setattr(seams_mod.ipctk, "has_intersections", lambda mesh, x: True)
     monkeypatch.setattr(seams_mod, "crossings_at", lambda *args: np.zeros(0, np.int64))

@@ -6,28 +6,16 @@ from __future__ import annotations
 import numpy as np
 
 from garment.materials import PRESETS
-from garment.model import Patch
 from garment.scene import ContactSpec
-from sim.seams import SeamSpec
 from sim.simulator import Simulator
-from tests.support.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
+
 from tests.sim.test_energies import fd_gradient
-
-N = 8
-
-
-def _two_panels(gap: float, stiffness: float = 1e6, contact=None) -> Simulator:
-    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.2 - gap / 2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (gap / 2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    t = np.linspace(0.0, N - 2.0, 30)
-    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), t])
-    return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
-                     contact=contact or ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam],
-                     seam_stiffness=stiffness)
+from tests.support.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
+from tests.support.scenes import N, edge_seam, panel, two_panels
 
 
 def test_seam_energy_is_the_gap_squared():
-    sim = _two_panels(0.02)
+    sim = two_panels(0.02)
     gaps = sim.seam.samples.gaps(sim.C)
     np.testing.assert_allclose(gaps, 0.02, rtol=1e-12)  # straight edges 2 cm apart
     w = sim.seam.samples.weights
@@ -36,7 +24,7 @@ def test_seam_energy_is_the_gap_squared():
 
 
 def test_open_seam_closes_and_stays_closed_without_barriers():
-    sim = _two_panels(0.03)
+    sim = two_panels(0.03)
     fa, fb = sim.pieces[0].topology.faces, sim.pieces[1].topology.faces
     for _ in range(15):
         st = sim.step()
@@ -51,12 +39,10 @@ def test_open_seam_closes_and_stays_closed_without_barriers():
 
 
 def _ramped(quasistatic: bool, stiffness: float = 1e6) -> Simulator:
-    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.215, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (0.015, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    t = np.linspace(0.0, N - 2.0, 30)
-    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), t])
+    a = panel("a", (-0.215, -0.1, 0.0))
+    b = panel("b", (0.015, -0.1, 0.0))
     return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
-                     seams=[seam], seam_stiffness=stiffness, seam_ramp=0.05, quasistatic_sewing=quasistatic)
+                     seams=[edge_seam()], seam_stiffness=stiffness, seam_ramp=0.05, quasistatic_sewing=quasistatic)
 
 
 def test_seam_ramp_starts_at_an_absolute_stiffness_and_ends_at_the_seams():
@@ -95,7 +81,7 @@ def test_scene_sewing_mode_is_checked():
 
 
 def test_seam_multipliers_derivatives_match_finite_differences():
-    sim = _two_panels(0.02)
+    sim = two_panels(0.02)
     seam = sim.seam
     rng = np.random.default_rng(3)
     seam.multipliers = rng.normal(scale=50.0, size=seam.multipliers.shape)  # N/m
@@ -118,12 +104,10 @@ def test_seam_multipliers_derivatives_match_finite_differences():
 
 def _eased(multipliers: bool) -> Simulator:
     """Two panels whose seam is eased: b's side is 20 % shorter than a's."""
-    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.2, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (0.0, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    t = np.linspace(0.0, N - 2.0, 30)
-    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.zeros(30), 0.8 * t])
+    a = panel("a", (-0.2, -0.1, 0.0))
+    b = panel("b", (0.0, -0.1, 0.0))
     return Simulator([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, 0.0), dt=0.01,
-                     seams=[seam], seam_stiffness=1e5, seam_multipliers=multipliers)
+                     seams=[edge_seam(v_scale=0.8)], seam_stiffness=1e5, seam_multipliers=multipliers)
 
 
 def _late_gaps(sim: Simulator) -> list[float]:
@@ -164,8 +148,8 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
 
 
 def test_multipliers_grow_only_while_the_gap_shrinks_by_at_most_twice_what_the_cloth_carries():
-    seam = _two_panels(0.02).seam
-    C = _two_panels(0.02).C
+    seam = two_panels(0.02).seam
+    C = two_panels(0.02).C
     cotton = PRESETS["cotton"]
     cap = 2.0 * cotton.E_st * cotton.h  # 1272 N/m
     np.testing.assert_allclose(seam.max_step, cap)
@@ -176,7 +160,7 @@ def test_multipliers_grow_only_while_the_gap_shrinks_by_at_most_twice_what_the_c
     seam.update_multipliers(closer)
     np.testing.assert_allclose(np.linalg.norm(seam.multipliers, axis=1), 2.0 * cap, rtol=1e-12)
 
-    seam = _two_panels(0.02).seam
+    seam = two_panels(0.02).seam
     seam.max_step = np.full_like(seam.max_step, np.inf)
     seam.update_multipliers(C)  # first update: 2 cm gaps, k g = 1e6 x 0.02 = 2e4 N/m
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4, rtol=1e-9)
@@ -193,13 +177,12 @@ def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
     """Sheets a (z = +h) and b (z = -h) with a seam joining their x = 0.1 edges, and a third
     sheet at z = 0 reaching in between them over y < -0.005 (half of the seam): the pleat
     whose folded layer ends up between the two sides of its seam."""
-    a = Patch.rectangle("a", (0.2, 0.2), (N, N), (-0.1, -0.1, h), (1, 0, 0), (0, 1, 0))
-    b = Patch.rectangle("b", (0.2, 0.2), (N, N), (-0.1, -0.1, -h), (1, 0, 0), (0, 1, 0))
-    layer = Patch.rectangle("layer", (0.2, 0.095), (N, N), (0.05, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
-    t = np.linspace(0.0, N - 2.0, 30)
-    seam = SeamSpec("a", np.c_[np.full(30, N - 2.0), t], "b", np.c_[np.full(30, N - 2.0), t])
+    a = panel("a", (-0.1, -0.1, h))
+    b = panel("b", (-0.1, -0.1, -h))
+    layer = panel("layer", (0.05, -0.1, 0.0), (0.2, 0.095))
     return Simulator([a, b, layer], [PRESETS["cotton"]] * 3, gravity=(0.0, 0.0, 0.0), dt=0.01,
-                     contact=ContactSpec(enabled=True, adaptive_kappa=True), seams=[seam], seam_stiffness=1e6)
+                     contact=ContactSpec(enabled=True, adaptive_kappa=True), seams=[edge_seam(N - 2.0)],
+                     seam_stiffness=1e6)
 
 
 def test_a_seam_blocked_by_a_layer_pulls_weakly_there_and_fully_again_once_it_is_gone():
@@ -243,7 +226,7 @@ def test_a_seam_blocked_by_a_layer_pulls_weakly_there_and_fully_again_once_it_is
 def test_seam_gaps_are_reported_per_seam_at_the_end_of_a_run(capsys):
     from garment.commands.simulate import print_seam_summary
 
-    sim = _two_panels(0.02)
+    sim = two_panels(0.02)
     gaps = sim.seam_gaps()
     assert list(gaps) == ["0"] and abs(gaps["0"] - 0.02) < 1e-12  # unnamed: by index
     print_seam_summary(sim)

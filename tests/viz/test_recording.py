@@ -18,8 +18,8 @@ from viz.recording import export_mesh, load_recording
 from viz.render import FrameBuffer
 from viz.rerun_sink import RerunSink
 
-from tests.garment.test_cli import SCENE
-from tests.sim.test_sinks import MESHES, positions
+from tests.support.meshes import MESHES, positions
+from tests.support.scenes import HANGING_SHEET
 
 N = 12  # frames in the recordings that get damaged
 
@@ -114,12 +114,12 @@ def test_export_mesh_round_trip(tmp_path):
 def test_simulate_inspect_round_trip(tmp_path, capsys):
     """simulate -> .rrd -> inspect: same frame count and the same float32 positions."""
     scene = tmp_path / "small.toml"
-    scene.write_text(SCENE)
+    scene.write_text(HANGING_SHEET)
     rrd = tmp_path / "run.rrd"
     assert main(["simulate", str(scene), "-o", str(rrd), "--control-net", "-q"]) == 0
 
     # The same run from Python, frames kept in memory.
-    sc = loads_scene(SCENE)
+    sc = loads_scene(HANGING_SHEET)
     sim = Simulator.from_scene(sc)
     kept = FrameBuffer()
     sim.run(sc.time.frames, sc.time.steps_per_frame, [kept])

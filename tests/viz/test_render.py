@@ -12,7 +12,7 @@ from sim.embedding import grid_faces
 from sim.sinks import MeshTopology
 from viz.render import BACKGROUND, RenderOptions, output_kind, parse_size, render, scene_bounds
 
-from tests.garment.test_cli import SCENE
+from tests.support.scenes import HANGING_SHEET
 
 SIZE = (160, 120)
 EMPTY = np.zeros((0, 2))
@@ -90,7 +90,7 @@ def test_output_kinds_and_sizes(tmp_path):
 
 def test_simulate_render_cli(tmp_path, capsys):
     scene = tmp_path / "small.toml"
-    scene.write_text(SCENE)
+    scene.write_text(HANGING_SHEET)
     gif = tmp_path / "run.gif"
     assert main(["simulate", str(scene), "--render", str(gif), "--render-size", "96x72", "-q"]) == 0
     assert len([im for im in iio.get_reader(gif)]) == 5  # initial frame + 4
@@ -101,7 +101,7 @@ def test_simulate_render_cli(tmp_path, capsys):
 
 def test_inspect_render_cli(tmp_path):
     scene = tmp_path / "small.toml"
-    scene.write_text(SCENE)
+    scene.write_text(HANGING_SHEET)
     rrd = tmp_path / "run.rrd"
     assert main(["simulate", str(scene), "-o", str(rrd), "-q"]) == 0
     assert main(["inspect", str(rrd), "--render", str(tmp_path / "frames"), "--render-size", "96x72", "-q"]) == 0

@@ -14,9 +14,10 @@ from sim.stats import StepStats
 from viz.recording import load_recording
 from viz.rerun_sink import RerunSink, check_viewer_reachable, control_net_strips, step_scalars
 
-from tests.sim.test_sinks import grid
+from tests.support.meshes import grid_topology
+from tests.support.scenes import HANGING_SHEET
 
-CLOTH = grid("sheet", 5, 4)
+CLOTH = grid_topology("sheet", 5, 4)
 EMPTY = np.zeros((0, 2))
 BALL = MeshTopology("ball", np.array([[0, 1, 2], [0, 2, 3]], np.int32), EMPTY, EMPTY, kind="body")
 BALL_X = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
@@ -162,10 +163,8 @@ def test_simulate_serve_and_connect_cli(tmp_path, monkeypatch, capsys):
     import garment.commands.simulate as simulate_cmd
     from garment.cli import main
 
-    from tests.garment.test_cli import SCENE
-
     scene = tmp_path / "small.toml"
-    scene.write_text(SCENE)
+    scene.write_text(HANGING_SHEET)
     port = free_port()
     seen = []
 
