@@ -16,6 +16,7 @@ from conform.mips import refine as mips_refine
 from garment.model import Panel, Patch
 from sim.bspline import basis_matrix
 
+from tests.support.fd import central, unit
 from tests.support.panels import polygon_panel
 
 
@@ -90,19 +91,17 @@ def test_point_energy_derivatives_match_finite_differences():
     for eps, aw in ((0.0, 0.0), (0.0, 10.0), (0.3, 1.0)):
         f, g, _ = _point_terms(Y, scale, eps, aw, 0.9)
         h = 1e-6
+
+        def terms(Y):  # per point (f, g) without projection: component k of every point at once
+            return _point_terms(Y, scale, eps, aw, 0.9, False)
+
         for k in range(4):
-            dY = np.zeros_like(Y)
-            dY[:, k] = h
-            fd = (_point_terms(Y + dY, scale, eps, aw, 0.9, False)[0]
-                  - _point_terms(Y - dY, scale, eps, aw, 0.9, False)[0]) / (2 * h)
+            fd = central(lambda Y: terms(Y)[0], Y, unit(Y, np.s_[:, k]), h)
             np.testing.assert_allclose(g[:, k], fd, rtol=1e-6)
         # The Hessian is the derivative of the gradient; the projected one is PSD.
         _, _, H = _point_terms(Y, scale, eps, aw, 0.9, project=False)
         for k in range(4):
-            dY = np.zeros_like(Y)
-            dY[:, k] = h
-            fd = (_point_terms(Y + dY, scale, eps, aw, 0.9, False)[1]
-                  - _point_terms(Y - dY, scale, eps, aw, 0.9, False)[1]) / (2 * h)
+            fd = central(lambda Y: terms(Y)[1], Y, unit(Y, np.s_[:, k]), h)
             np.testing.assert_allclose(H[:, :, k], fd, rtol=1e-5, atol=1e-6)
         _, _, Hp = _point_terms(Y, scale, eps, aw, 0.9)
         assert np.linalg.eigvalsh(Hp).min() > -1e-9 * np.abs(Hp).max()
@@ -130,7 +129,7 @@ def test_mips_gradient_and_newton_step():
     rng = np.random.default_rng(3)
     d = rng.standard_normal(X2.shape)
     h = 1e-7
-    fd = (prob.value(X2 + h * d) - prob.value(X2 - h * d)) / (2 * h)
+    fd = central(prob.value, X2, d, h)
     assert (g * d).sum() == pytest.approx(fd, rel=1e-6)
     # The numba kernel's assembled Hessian equals a plain sparse assembly of the per-point
     # projected Hessians of the reference implementation.

@@ -11,6 +11,7 @@ from garment.scene import loads_scene
 from sim.assembly import BlockPattern
 from sim.simulator import Simulator
 
+from tests.support.fd import dofs, fd_gradient, fd_hessian, gradient
 from tests.support.intersections import intersecting_pairs
 from tests.support.scenes import DROP
 
@@ -62,25 +63,11 @@ def test_barrier_derivatives_on_control_points():
     active = np.flatnonzero(np.abs(g).sum(1) > 0)
     assert active.size > 0
     h = 1e-7
-    for i in active[:6]:
-        for d in range(3):
-            Cp, Cm = C.copy(), C.copy()
-            Cp[i, d] += h
-            Cm[i, d] -= h
-            fd = (e.value(Cp) - e.value(Cm)) / (2 * h)
-            assert fd == pytest.approx(g[i, d], rel=1e-4, abs=1e-6 * np.abs(g).max())
+    rows = active[:6]
+    assert fd_gradient(e, C, h, rows) == pytest.approx(g[rows], rel=1e-4, abs=1e-6 * np.abs(g).max())
     H = e.hessian_matrix(C, project=False).toarray()
-    for i in active[:4]:
-        for d in range(3):
-            Cp, Cm = C.copy(), C.copy()
-            Cp[i, d] += h
-            Cm[i, d] -= h
-            gp, gm = np.zeros_like(C), np.zeros_like(C)
-            e.add_gradient(Cp, gp)
-            e.add_gradient(Cm, gm)
-            col = ((gp - gm) / (2 * h)).ravel()
-            scale = np.abs(H).max()
-            np.testing.assert_allclose(H[:, 3 * i + d], col, rtol=1e-4, atol=1e-5 * scale)
+    rows = active[:4]
+    np.testing.assert_allclose(H[:, dofs(rows)], fd_hessian(e, C, h, rows), rtol=1e-4, atol=1e-5 * np.abs(H).max())
 
 
 def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread):
@@ -122,25 +109,6 @@ def test_initial_intersection_is_an_input_error():
         Simulator.from_scene(loads_scene(DROP.format(height=0.1)))
 
 
-def _fd_check(e, C, rows, h, rtol):
-    """Central differences of value -> gradient and gradient -> Hessian columns."""
-    g = np.zeros_like(C)
-    e.add_gradient(C, g)
-    H = e.hessian_matrix(C, project=False).toarray()
-    gs, hs = np.abs(g).max(), np.abs(H).max()
-    for i in rows:
-        for d in range(3):
-            Cp, Cm = C.copy(), C.copy()
-            Cp[i, d] += h
-            Cm[i, d] -= h
-            fd = (e.value(Cp) - e.value(Cm)) / (2 * h)
-            assert fd == pytest.approx(g[i, d], rel=rtol, abs=rtol * gs)
-            gp, gm = np.zeros_like(C), np.zeros_like(C)
-            e.add_gradient(Cp, gp)
-            e.add_gradient(Cm, gm)
-            np.testing.assert_allclose(H[:, 3 * i + d], ((gp - gm) / (2 * h)).ravel(), rtol=rtol, atol=rtol * hs)
-
-
 def test_friction_derivatives_on_control_points():
     text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-2")
     sim = Simulator.from_scene(loads_scene(text))
@@ -150,11 +118,14 @@ def test_friction_derivatives_on_control_points():
     rng = np.random.default_rng(2)
     # Slide tangentially by more than eps_v dt (dynamic regime) at some points, less at others.
     C = sim.C + 1e-4 * rng.standard_normal(sim.C.shape) * [1, 1, 0]
-    g = np.zeros_like(C)
-    f.add_gradient(C, g)
+    g = gradient(f, C)
     rows = np.flatnonzero(np.abs(g).sum(1) > 0)
     assert rows.size > 0 and f.value(C) > 0.0
-    _fd_check(f, C, rows[:4], 1e-8, 1e-4)
+    # Central differences of value -> gradient and gradient -> Hessian columns.
+    rows, h = rows[:4], 1e-8
+    H = f.hessian_matrix(C, project=False).toarray()
+    assert fd_gradient(f, C, h, rows) == pytest.approx(g[rows], rel=1e-4, abs=1e-4 * np.abs(g).max())
+    np.testing.assert_allclose(H[:, dofs(rows)], fd_hessian(f, C, h, rows), rtol=1e-4, atol=1e-4 * np.abs(H).max())
 
 
 def test_friction_opposes_sliding():

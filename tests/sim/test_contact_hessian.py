@@ -12,6 +12,7 @@ from sim.assembly import BlockPattern, add_dof_matrix
 from sim.contact.hessian_map import ContactHessianMap
 from sim.simulator import Simulator
 
+from tests.support.fd import dofs, relerr
 from tests.support.scenes import DROP
 
 
@@ -25,9 +26,8 @@ def reference(W, pattern, H, n_cloth):
     n = 3 * n_cloth
     W3 = sp.kron(W, sp.identity(3), format="csr")
     HC = (W3.T @ H.tocsc()[:n, :n] @ W3).tocsr()
-    free_points = np.flatnonzero(pattern.free >= 0)
-    dofs = (3 * free_points[:, None] + np.arange(3)).ravel()
-    S = sp.csr_matrix((np.ones(dofs.size), (np.arange(dofs.size), dofs)), shape=(dofs.size, HC.shape[0]))
+    free = dofs(np.flatnonzero(pattern.free >= 0))
+    S = sp.csr_matrix((np.ones(free.size), (np.arange(free.size), free)), shape=(free.size, HC.shape[0]))
     data = np.zeros(pattern.nnz)
     moved = add_dof_matrix(pattern, S @ HC @ S.T, data)
     return data, moved
@@ -68,10 +68,6 @@ def synthetic_collisions(sim, n=300, seed=0):
     return H, hess, ids
 
 
-def rel_err(a, b):
-    return np.abs(a - b).max() / np.abs(b).max()
-
-
 def test_synthetic_far_pairs_and_pins_match_reference(sim):
     pattern = pinned_pattern(sim)
     W = sim.barrier.contact.W
@@ -83,11 +79,11 @@ def test_synthetic_far_pairs_and_pins_match_reference(sim):
     for mat in (H, H.tocsr()):
         data = np.zeros(pattern.nnz)
         moved = cmap.add(mat, data)
-        assert rel_err(data, ref) < 1e-12
+        assert relerr(data, ref) < 1e-12
         assert moved == ref_moved
     data = np.zeros(pattern.nnz)
     assert cmap.add_local(hess, ids, data) == ref_moved
-    assert rel_err(data, ref) < 1e-12
+    assert relerr(data, ref) < 1e-12
     # PSD in, PSD out (moved entries keep it so).
     eig = np.linalg.eigvalsh(pattern.full(data).toarray())
     assert eig.min() > -1e-10 * eig.max()
@@ -98,10 +94,9 @@ def test_synthetic_far_pairs_and_pins_match_reference(sim):
     exact = pattern.full(data) - sp.diags(cmap.shift) + B + B.T
     n = 3 * sim.barrier.contact.n_cloth
     W3 = sp.kron(W, sp.identity(3), format="csr")
-    free_points = np.flatnonzero(pattern.free >= 0)
-    dofs = (3 * free_points[:, None] + np.arange(3)).ravel()
-    want = (W3.T @ H.tocsc()[:n, :n] @ W3)[dofs][:, dofs]
-    assert rel_err(exact.toarray(), want.toarray()) < 1e-12
+    free = dofs(np.flatnonzero(pattern.free >= 0))
+    want = (W3.T @ H.tocsc()[:n, :n] @ W3)[free][:, free]
+    assert relerr(exact.toarray(), want.toarray()) < 1e-12
 
 
 def test_adds_into_existing_data(sim):
@@ -112,7 +107,7 @@ def test_adds_into_existing_data(sim):
     ref, _ = reference(W, pattern, H, sim.barrier.contact.n_cloth)
     data = base.copy()
     ContactHessianMap(W, pattern).add(H, data)
-    assert rel_err(data, base + ref) < 1e-12
+    assert relerr(data, base + ref) < 1e-12
 
 
 def test_ipctk_barrier_hessian_matches_reference(sim):
@@ -126,7 +121,7 @@ def test_ipctk_barrier_hessian_matches_reference(sim):
     data = np.zeros(pattern.nnz)
     moved = ContactHessianMap(e.contact.W, pattern).add(H, data)
     assert moved == ref_moved == 0
-    assert rel_err(data, ref) < 1e-12
+    assert relerr(data, ref) < 1e-12
 
 
 def test_sum_entries_sums_each_entry_once():

@@ -9,12 +9,13 @@ import pytest
 from garment.bench.common import scene
 from garment.bench.plate import navier_coefficient
 from garment.materials import Material
-from sim.assembly import BlockPattern
 from sim.energies import MembraneFBW, MembraneStVK
 from sim.linear import LinearSimulator, equilateral_mesh, grid_mesh
 from sim.linear.bending_bergou import bergou_bending
 from sim.linear.membrane import triangle_points
 from sim.linear.simulator import membrane_params, select_vertices
+
+from tests.support.fd import bound, fd_directional, gradient, hessian
 
 MAT = Material()
 
@@ -23,35 +24,15 @@ def flat(mesh) -> np.ndarray:
     return np.c_[mesh.rest, np.zeros(mesh.n_vertices)]
 
 
-def bound(energy, n):
-    pattern = BlockPattern.from_stencils(np.arange(n), energy.stencils())
-    energy.bind(pattern)
-    return pattern
-
-
-def hessian(energy, pattern, C, project=False) -> np.ndarray:
-    data = np.zeros(pattern.nnz)
-    energy.add_hessian(C, data, project)
-    return pattern.full(data).toarray()
-
-
-def gradient(energy, C) -> np.ndarray:
-    g = np.zeros_like(C)
-    energy.add_gradient(C, g)
-    return g
-
-
 def check_fd(energy, C, scale, rng):
-    """Central differences of value -> gradient and gradient -> Hessian (relative)."""
-    n = C.shape[0]
-    pattern = bound(energy, n)
+    """Value -> gradient and gradient -> Hessian along a random direction (relative)."""
+    pattern = bound(energy, C.shape[0])
     g = gradient(energy, C).ravel()
     H = hessian(energy, pattern, C)
-    eps = 1e-6 * scale
     d = rng.standard_normal(C.shape)
-    fd = (energy.value(C + eps * d) - energy.value(C - eps * d)) / (2 * eps)
+    fd, fd_H = fd_directional(energy, C, d, 1e-6 * scale)
     assert fd == pytest.approx(g @ d.ravel(), rel=1e-5)
-    fd_H = (gradient(energy, C + eps * d) - gradient(energy, C - eps * d)).ravel() / (2 * eps)
+    fd_H = fd_H.ravel()
     np.testing.assert_allclose(H @ d.ravel(), fd_H, rtol=1e-5, atol=1e-6 * np.abs(fd_H).max())
 
 
