@@ -8,12 +8,15 @@ import json
 
 import numpy as np
 import pytest
+import trimesh
+from PIL import Image
 
 from conform import ConformOptions, PanelError, conform_all
 from conform.boundary import extract_outline
 from conform.seams import invert
 from garment.cli import main
 from garment.errors import InputError
+from garment.io.garmentcode import read_garmentcode
 from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset, save_patchset
 
@@ -35,8 +38,6 @@ def test_bad_panels_are_rejected_with_the_panel_named(tmp_path, name):
 
 
 def test_garmentcode_outline_that_crosses_itself(tmp_path):
-    from garment.io.garmentcode import read_garmentcode
-
     spec = {"pattern": {"panels": {"bow": {
         "translation": [0, 0, 0], "rotation": [0, 0, 0],
         "vertices": [[0, 0], [20, 20], [20, 0], [0, 20]],
@@ -129,8 +130,6 @@ def test_conform_command_table_corners_and_preview(tmp_path, capsys, two_panels_
     ps = load_patchset(out / "patches.json")
     assert ps.provenance["front"]["corner_vertex_ids"] == [12, 60, 65, 17]
     np.testing.assert_allclose(ps.patch("front").rest[0, 0], [0.04, 0.0])
-    from PIL import Image
-
     img = np.asarray(Image.open(png).convert("RGB"))
     assert img.shape[0] > 500 and (img < 200).any()  # something was drawn
 
@@ -181,8 +180,6 @@ def test_seam_points_map_back_onto_the_rest_points(two_panels_and_a_hole):
 
 
 def test_flat_meshes_in_other_formats(tmp_path):
-    import trimesh
-
     Va, Fa = grid(5, 4)
     Vb, Fb = grid(4, 4, origin=(0.5, 0.0))
     V = np.concatenate([Va, Vb])

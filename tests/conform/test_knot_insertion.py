@@ -4,11 +4,15 @@ with more control points, and a sewn simulation continued at the finer span."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from conform.knot_insertion import refine_net, refine_patchset
 from garment.bench.garment import _refined
+from garment.errors import InputError
+from garment.materials import PRESETS
 from garment.model import BoundaryInterval, Patch, PatchSeam, PatchSet
-from garment.scene import parse_scene
+from garment.scene import ContactSpec, parse_scene
+from sim.contact.mesh import crossing_pairs
 from sim.embedding import interpolation_matrix
 from sim.simulator import Simulator
 
@@ -67,14 +71,6 @@ def test_a_sewn_garment_continues_exactly_at_half_the_span(tmp_path):
 
 
 def test_only_a_handed_over_state_may_start_with_crossings():
-    import pytest
-
-    from garment.errors import InputError
-    from garment.materials import PRESETS
-    from garment.model import Patch
-    from garment.scene import ContactSpec
-    from sim.contact.mesh import crossing_pairs
-
     def crossed(cls):
         a = Patch.rectangle("a", (0.2, 0.2), (6, 6), (-0.1, -0.1, 0.0), (1, 0, 0), (0, 1, 0))
         b = Patch.rectangle("b", (0.2, 0.2), (6, 6), (-0.1, 0.0, -0.1), (1, 0, 0), (0, 0, 1))  # through a

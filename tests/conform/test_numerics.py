@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from conform import ConformOptions, conform_panel
 from conform.boundary import extract_outline
@@ -133,8 +134,6 @@ def test_mips_gradient_and_newton_step():
     assert (g * d).sum() == pytest.approx(fd, rel=1e-6)
     # The numba kernel's assembled Hessian equals a plain sparse assembly of the per-point
     # projected Hessians of the reference implementation.
-    import scipy.sparse as sp
-
     pts = prob.pts
     _, _, Hq = _point_terms(pts.jacobians(X2), prob.scale, 0.0, prob.options.area_weight, prob.d0)
     Hq = Hq * (pts.w / prob.W)[:, None, None]

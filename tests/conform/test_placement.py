@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 
 from conform.lift import lift
 from conform.pipeline import ConformOptions, conform_panel
@@ -105,8 +106,6 @@ def test_placement_errors_name_the_file(tmp_path):
 
 
 def test_inset_body_grows_to_its_pose_over_the_second_half_of_the_preroll():
-    import trimesh
-
     m = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
     body = ObstacleGeometry("ball", np.asarray(m.vertices), np.asarray(m.faces, np.int32),
                             delay=0.2, inset=0.004, grow=(0.1, 0.2))
@@ -119,8 +118,6 @@ def test_inset_body_grows_to_its_pose_over_the_second_half_of_the_preroll():
 
 
 def test_inset_stops_short_of_turning_thin_parts_inside_out():
-    import trimesh
-
     m = trimesh.creation.box(extents=(0.3, 0.3, 0.01)).subdivide().subdivide()  # a 1 cm slab
     body = ObstacleGeometry("slab", np.asarray(m.vertices), np.asarray(m.faces, np.int32), inset=0.03, grow=(0.1, 0.2))
     z = np.abs(body.at(0.0)[:, 2])

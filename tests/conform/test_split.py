@@ -15,6 +15,7 @@ from conform.split import darts_of, split_panel, split_seams
 from garment.cli import main
 from garment.io.garmentcode import read_garmentcode
 from garment.io.patchfile import load_patchset, save_patchset
+from garment.model import Panel, PanelSeam
 
 from tests.support.panels import interval_length, polygon_points, rest_points
 
@@ -176,8 +177,6 @@ def ear_clip(P: np.ndarray) -> np.ndarray:
 
 
 def test_a_darted_mesh_panel_is_split_and_lifted_from_its_mesh():
-    from garment.model import Panel, PanelSeam
-
     corners = np.array([[0, 0], [0.5, 0], [0.5, 0.6], [0.265, 0.6], [0.25, 0.35], [0.235, 0.6], [0, 0.6]])
     rest, _ = polygon_points(corners, 0.02)
     faces = ear_clip(rest)

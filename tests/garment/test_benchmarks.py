@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
-from garment.bench import plate, wrinkle
+from garment.bench import conform_garments, plate, wrinkle
+from garment.bench import garment as bench
+from garment.bench.conform_garments import panel_seconds
+from garment.bench.garment import SCENES, case_scene
+from garment.scene import load_scene
 
 
 def test_navier_coefficient():
@@ -35,9 +42,6 @@ def test_wrinkle_deflection_approaches_reference():
 
 
 def test_bench_garment_cases_set_the_papers_hiphop_parameters():
-    from garment.bench.garment import SCENES, case_scene
-    from garment.scene import load_scene
-
     sc = case_scene("dress-hiphop", 0.016, "gauss2")
     (g,) = sc.garments
     assert (g.material.E_st, g.material.E_sh, g.material.E_bd, g.material.quadrature) == (5e5, 2.5e3, 8e2, "gauss2")
@@ -58,10 +62,6 @@ def test_bench_garment_cases_set_the_papers_hiphop_parameters():
 def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
     # The hand-over's settling (finer contact mesh, closer contacts) belongs to the
     # pre-roll, not to the timed dance: the last SETTLE of it runs at the fine span.
-    import dataclasses
-
-    from garment.bench import garment as bench
-
     scene = bench.case_scene
 
     def short_preroll(*args):
@@ -79,8 +79,6 @@ def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
 
 def test_bench_conform_garments_times_whole_panels():
     """The split pencil dress: its skirt_back's time is its five pieces together."""
-    from garment.bench import conform_garments
-
     (case,) = conform_garments.run((20,), case="dress_pencil")
     assert (case["panels"], case["patches"]) == (6, 10)
     assert case["target_ratio"] == pytest.approx(case["max_panel_seconds"] / 2.0)
@@ -91,10 +89,6 @@ def test_bench_conform_garments_times_whole_panels():
 
 
 def test_panel_seconds_sums_the_pieces_of_a_split_panel():
-    from types import SimpleNamespace
-
-    from garment.bench.conform_garments import panel_seconds
-
     ps = SimpleNamespace(splits={"skirt": {"patches": ["skirt.0", "skirt.1"], "seconds": 0.7}},
                          quality={"skirt.0": {"seconds": 0.3}, "skirt.1": {"seconds": 0.4}, "band": {"seconds": 0.2}})
     assert panel_seconds(ps) == {"skirt": 0.7, "band": 0.2}

@@ -24,6 +24,7 @@ from garment.scene import (
     loads_scene,
     parse_scene,
 )
+from sim.simulator import Simulator
 
 FULL = """\
 [scene]
@@ -441,8 +442,6 @@ def test_scene_error_is_a_value_error_and_pickles():
 
 
 def test_newton_extrapolate_reaches_the_solver(tmp_path):
-    from sim.simulator import Simulator
-
     scene = load_scene(write(tmp_path, CLOTH + "[time]\nnewton_extrapolate = 3\nnewton_tol = 0.02\n"))
     opts = Simulator.from_scene(scene).newton
     assert (opts.extrapolate, opts.tol) == (3, 0.02)

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from garment.errors import InputError
 from garment.io.obstacles import load_obstacle
 from garment.scene import loads_scene
-from sim.assembly import BlockPattern
+from sim.assembly import BlockPattern, add_dof_matrix
 from sim.simulator import Simulator
 
 from tests.support.fd import dofs, fd_gradient, fd_hessian, gradient
@@ -91,15 +92,13 @@ def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread)
 
 def test_projected_contact_hessian_stays_psd_in_pattern():
     """Off-pattern contact entries move to the diagonal: the assembled matrix stays PSD."""
-    from sim.assembly import add_dof_matrix
-
     free = np.arange(6)
     pattern = BlockPattern.from_stencils(free, [np.array([[0, 1, 2], [3, 4, 5]])])
     rng = np.random.default_rng(0)
     A = rng.standard_normal((18, 18))
     H = A @ A.T  # dense PSD: couples blocks (0, 3) etc. that the pattern lacks
     data = np.zeros(pattern.nnz)
-    moved = add_dof_matrix(pattern, __import__("scipy.sparse").sparse.csr_matrix(H), data)
+    moved = add_dof_matrix(pattern, sp.csr_matrix(H), data)
     assert moved > 0
     assert np.linalg.eigvalsh(pattern.full(data).toarray()).min() > -1e-9
 

@@ -9,7 +9,7 @@ import scipy.sparse as sp
 
 from garment.scene import loads_scene
 from sim.assembly import BlockPattern, add_dof_matrix
-from sim.contact.hessian_map import ContactHessianMap
+from sim.contact.hessian_map import ContactHessianMap, _sum_entries
 from sim.simulator import Simulator
 
 from tests.support.fd import dofs, relerr
@@ -125,8 +125,6 @@ def test_ipctk_barrier_hessian_matches_reference(sim):
 
 
 def test_sum_entries_sums_each_entry_once():
-    from sim.contact.hessian_map import _sum_entries
-
     rng = np.random.default_rng(4)
     r, c = rng.integers(0, 30, 2000), rng.integers(0, 30, 2000)
     v = rng.standard_normal(2000)

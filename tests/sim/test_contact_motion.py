@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 import trimesh
 
+from garment.bench.common import scene
 from garment.errors import InputError
 from garment.io.bodies import load_sequence
 from garment.scene import load_scene, loads_scene
+from sim.newton import NewtonOptions
 from sim.simulator import Simulator
 
 from tests.support.intersections import intersecting_pairs
@@ -208,8 +210,6 @@ def test_off_pattern_couplings_modes(mode):
     """Contacts between two pieces fall outside the fixed pattern. Solving with them
     (merged) keeps momentum to round-off; leaving them on the diagonal does not: that is
     what the partial factorization's exact solves buy."""
-    from sim.newton import NewtonOptions
-
     sim = Simulator.from_scene(load_scene(SCENES / "two_plates.toml"), NewtonOptions(off_pattern=mode))
     P0 = (sim.mass[:, None] * sim.V).sum(axis=0)
     scale = float((sim.mass * np.linalg.norm(sim.V, axis=1)).sum())
@@ -225,8 +225,6 @@ def test_sphere_scene_sheet_rests_on_the_sphere():
     """The paper's cloth-on-sphere scene (assets/scenes/sphere.toml) at 20^2: every frame
     intersection-free with positive distance, and after 0.8 s the sheet rests on the
     sphere's top."""
-    from garment.bench.common import scene
-
     sim = Simulator.from_scene(scene("sphere", (20, 20)))
     for _ in range(80):
         st = sim.step()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from garment.bench import compare, compare_ablation, compare_locking, compare_plate
 from garment.bench.common import scene
 from garment.bench.plate import navier_coefficient
 from garment.materials import Material
@@ -14,6 +15,7 @@ from sim.linear import LinearSimulator, equilateral_mesh, grid_mesh
 from sim.linear.bending_bergou import bergou_bending
 from sim.linear.membrane import triangle_points
 from sim.linear.simulator import membrane_params, select_vertices
+from sim.simulator import Simulator
 
 from tests.support.fd import bound, fd_directional, gradient, hessian
 
@@ -154,8 +156,6 @@ def test_tiny_hanging_run():
 
 
 def test_compare_benchmark_pair_and_plate_rows(tmp_path):
-    from garment.bench import compare
-
     rows = compare.run((8,), steps=1, case="hanging", out=tmp_path)
     (row,) = rows
     assert (row["resolution"], row["linear_resolution"]) == (8, 12)
@@ -164,16 +164,12 @@ def test_compare_benchmark_pair_and_plate_rows(tmp_path):
     assert row["speedup"] == pytest.approx(row["seconds_per_step_linear"] / row["seconds_per_step_bspline"])
     assert row["hausdorff_mm"] < 50.0  # one step of the same fall
     assert (tmp_path / "compare.json").exists() and (tmp_path / "compare.md").exists()
-    from garment.bench import compare_plate
-
     rows = compare_plate.run({"reduced": (8, 16)}, {"equilateral": (9, 17)})
     summary = [r for r in rows if r["method"] == "equal-accuracy"]
     assert summary and all(r["rel_error_bspline"] <= r["rel_error_linear"] for r in summary)
 
 
 def test_compare_locking_and_ablation_rows():
-    from garment.bench import compare_ablation, compare_locking
-
     (row,) = compare_locking.run((2e6,), n=8, steps=2, shear_ratios=(5e-3,))
     for key in ("sag_m_bspline", "sag_m_linear_aligned", "sag_m_linear_crossing"):
         assert 0.0 < row[key] < 1.0  # falling, still above the pins' reach
@@ -188,8 +184,6 @@ def test_compare_locking_and_ablation_rows():
 def test_linear_simulator_carries_every_simulator_attribute(name):
     # LinearSimulator reuses Simulator.step and friends: a state attribute added to
     # Simulator.__init__ must be mirrored in LinearSimulator.__init__.
-    from sim.simulator import Simulator
-
     sc = scene(name, (8, 8))
     missing = set(vars(Simulator.from_scene(sc))) - set(vars(LinearSimulator.from_scene(sc, 8)))
     assert not missing, f"LinearSimulator lacks {sorted(missing)}"

@@ -9,8 +9,11 @@ import pytest
 
 from garment.materials import Material
 from garment.model import Patch
+from garment.scene import loads_scene
+from sim import linsolve
 from sim.energies import BendingEnergy, ExternalForceEnergy
-from sim.newton import NewtonOptions, minimize
+from sim.linsolve import neumann, pcg
+from sim.newton import NewtonOptions, _extrapolate, minimize
 from sim.pins import PinGroup, select
 from sim.potential import IncrementalPotential
 from sim.quadrature import span_centres
@@ -232,8 +235,6 @@ def test_quasistatic_plate_converges_in_two_iterations():
 
 
 def test_pcg_solves_spd_systems_and_every_iterate_descends():
-    from sim.linsolve import pcg
-
     rng = np.random.default_rng(3)
     A = rng.standard_normal((40, 40))
     A = A @ A.T + 0.1 * np.eye(40)
@@ -247,8 +248,6 @@ def test_pcg_solves_spd_systems_and_every_iterate_descends():
 
 
 def test_neumann_series_converges_when_the_splitting_contracts():
-    from sim.linsolve import neumann
-
     rng = np.random.default_rng(4)
     M = np.diag(rng.uniform(2.0, 3.0, 30))
     N = 0.05 * rng.standard_normal((30, 30))
@@ -280,8 +279,6 @@ class _Line:
     (lambda x: -x, 5.0, 4.0),                 # the collision test stops the doubling at 4
 ])
 def test_extrapolation_doubles_a_full_step_while_the_energy_falls(f, wall, reached):
-    from sim.newton import _extrapolate
-
     ip, stats = _Line(f, wall), StepStats()
     C = np.zeros((2, 3))
     C[0, 0] = 1.0  # the full step p = (1, 0, 0) already taken from 0
@@ -294,8 +291,6 @@ def test_extrapolation_doubles_a_full_step_while_the_energy_falls(f, wall, reach
 
 
 def test_large_factorizations_get_more_blas_threads_and_give_them_back():
-    from sim import linsolve
-
     lib = linsolve._OPENBLAS
     if lib is None or linsolve.LARGE_THREADS <= 1:
         pytest.skip("CHOLMOD does not call the system OpenBLAS here, or one core")
@@ -345,8 +340,6 @@ def _longest_ccd_move(max_speed: float) -> tuple[float, int]:
     """Two sheets 20 um apart sliding past each other at 2 m/s, pressed by a stiff
     barrier: the lagged friction mu lambda meets only inertia along the slip. Returns the
     longest move handed to CCD in the first Newton iteration, and the capped iterations."""
-    from garment.scene import loads_scene
-
     sim = Simulator.from_scene(loads_scene(SLIDING), NewtonOptions(max_speed=max_speed))
     moves, ccd = [0.0], sim.potential.max_step
 

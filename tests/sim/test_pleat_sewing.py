@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from garment.scene import parse_scene
+from sim.checkpoint import capture, restore
 from sim.simulator import Simulator
 
 from tests.support.intersections import garment_intersections
@@ -47,8 +48,6 @@ def test_the_band_waits_on_the_pleat_until_its_tucks_close(tmp_path):
     """`pleat_wait`: the band's samples on the pleat's face (seam3's, not the rest of
     it) carry no force until both tucks are within Simulator.PLEAT_WAIT; then they pull
     for good, and a checkpoint keeps that."""
-    from sim.checkpoint import capture, restore
-
     assert all(not s.after for s in _scene(tmp_path, "last").seams)  # off by default
     sim = _scene(tmp_path, "last", pleat_wait=True)
     assert [tuple(sorted(s.after)) for s in sim.seams] == [(), (), (), (0, 1)]

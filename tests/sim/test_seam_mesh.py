@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import sim.contact.seams as seams_mod
 from garment.scene import ContactSpec
+from sim.checkpoint import read_checkpoint, restore, write_checkpoint
 from sim.seam_mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
 
 from tests.support.intersections import intersecting_triangles, shared_vertices, stacked_cloth
@@ -114,8 +116,6 @@ def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
 
 
 def test_resume_after_the_seams_merged(tmp_path):
-    from sim.checkpoint import read_checkpoint, restore, write_checkpoint
-
     sim = two_panels(0.03)
     for _ in range(3):
         sim.step()
@@ -140,8 +140,6 @@ def test_band_seams_keep_grids_and_exclude_pairs_near_the_seam():
 def test_crossings_away_from_the_merged_pairs_stop_only_a_fresh_state_sewing(monkeypatch, keep):
     # A state handed over from a coarser run (keep_crossings) may carry crossings that no
     # merge made; they must not stop its seams from sewing, as they must for a fresh run.
-    import sim.contact.seams as seams_mod
-
     sim = two_panels(0.03)
     sim.seam_contact.keep_crossings = keep
     monkeypatch.setattr(seams_mod.ipctk, "has_intersections", lambda mesh, x: True)

@@ -4,9 +4,13 @@ never produce a barrier, and nothing passes through anything."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from garment.commands.simulate import print_seam_summary
+from garment.errors import InputError
 from garment.materials import PRESETS
-from garment.scene import ContactSpec
+from garment.scene import ContactSpec, parse_scene
+from sim.checkpoint import read_checkpoint, restore, write_checkpoint
 from sim.simulator import Simulator
 
 from tests.support.fd import fd_directional, fd_gradient, gradient
@@ -68,11 +72,6 @@ def test_quasistatic_sewing_drops_velocities_only_while_the_seams_ramp():
 
 
 def test_scene_sewing_mode_is_checked():
-    import pytest
-
-    from garment.errors import InputError
-    from garment.scene import parse_scene
-
     cloth = {"cloth": [{"size": [0.2, 0.2], "control_points": [5, 5]}]}
     assert parse_scene({**cloth, "time": {"sewing": "quasistatic"}}, "s.toml").time.sewing == "quasistatic"
     assert parse_scene(cloth, "s.toml").time.sewing == "dynamic"
@@ -127,8 +126,6 @@ def test_multipliers_close_an_eased_seam_that_a_penalty_leaves_open():
 
 
 def test_checkpoint_carries_the_multipliers(tmp_path):
-    from sim.checkpoint import read_checkpoint, restore, write_checkpoint
-
     sim = _eased(True)
     for _ in range(3):
         sim.step()
@@ -219,8 +216,6 @@ def test_a_seam_blocked_by_a_layer_pulls_weakly_there_and_fully_again_once_it_is
 
 
 def test_seam_gaps_are_reported_per_seam_at_the_end_of_a_run(capsys):
-    from garment.commands.simulate import print_seam_summary
-
     sim = two_panels(0.02)
     gaps = sim.seam_gaps()
     assert list(gaps) == ["0"] and abs(gaps["0"] - 0.02) < 1e-12  # unnamed: by index

@@ -9,6 +9,8 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
+import garment.commands.simulate as simulate_cmd
+from garment.cli import main
 from sim.sinks import Frame, MeshTopology
 from sim.stats import StepStats
 from viz.recording import load_recording
@@ -160,9 +162,6 @@ def test_needs_a_destination():
 
 
 def test_simulate_serve_and_connect_cli(tmp_path, monkeypatch, capsys):
-    import garment.commands.simulate as simulate_cmd
-    from garment.cli import main
-
     scene = tmp_path / "small.toml"
     scene.write_text(HANGING_SHEET)
     port = free_port()
