@@ -104,3 +104,16 @@ def garment_intersections(pieces, C, body_vertices, body_faces) -> tuple[np.ndar
     if not np.all(np.isfinite(x)):
         return x, -1, -1
     return x, len(intersecting_triangles(x, F, body_vertices, body_faces)), len(intersecting_triangles(*shared_vertices(x, F)))
+
+
+def assert_garment_clean(pieces, C, when: str, body_vertices=None, body_faces=None) -> np.ndarray:
+    """garment_intersections asserted at one frame or step (`when`, e.g. "step 3"): every
+    vertex finite, no garment-body pair, and no cloth-cloth pair (sewn panels share their
+    seam vertices exactly; no other triangle pair may cross). Returns the vertices."""
+    if body_vertices is None:
+        body_vertices, body_faces = np.zeros((0, 3)), np.zeros((0, 3), int)
+    x, body_pairs, cloth_pairs = garment_intersections(pieces, C, body_vertices, body_faces)
+    assert np.all(np.isfinite(x)), when
+    assert body_pairs == 0, f"garment-body intersection, {when}: {body_pairs} pairs"
+    assert cloth_pairs == 0, f"cloth-cloth intersection, {when}: {cloth_pairs} pairs"
+    return x
