@@ -7,7 +7,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.support.paths import ROOT
 # Package -> the project's packages it may import (besides itself).
 MAY_IMPORT = {"sim": set(), "conform": {"sim"}, "viz": {"sim"}, "garment": {"sim", "conform", "viz"}}
 

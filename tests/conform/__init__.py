@@ -1,0 +1,1 @@
+"""Tests of conform/: panels to B-spline patches, grading, splitting, pleats, placement."""

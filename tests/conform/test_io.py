@@ -1,0 +1,205 @@
+"""Conforming from files: the OBJ panel reader, bad panels, the patch file and the
+`garment conform` command (partial failure, JSON output, corner overrides, preview)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from conform import ConformOptions, PanelError, conform_all
+from conform.boundary import extract_outline
+from conform.seams import invert
+from garment.cli import main
+from sim.errors import InputError
+from garment.io.garmentcode import read_garmentcode
+from garment.io.panels import read_panels
+from garment.io.patchfile import load_patchset, save_patchset
+
+from tests.support.panels import bad_panels, grid, rest_points, write_obj
+
+
+# ------------------------------------------------------------------------------ bad panels
+
+
+@pytest.mark.parametrize("name", list(bad_panels()))
+def test_bad_panels_are_rejected_with_the_panel_named(tmp_path, name):
+    V, F, fragment = bad_panels()[name]
+    path = write_obj(tmp_path / "bad.obj", [(name, V, F)])
+    (panel,), _ = read_panels(path)
+    with pytest.raises(PanelError) as e:
+        extract_outline(panel)
+    msg = str(e.value)
+    assert fragment in msg and f"panel {name}" in msg and "bad.obj" in msg
+
+
+def test_garmentcode_outline_that_crosses_itself(tmp_path):
+    spec = {"pattern": {"panels": {"bow": {
+        "translation": [0, 0, 0], "rotation": [0, 0, 0],
+        "vertices": [[0, 0], [20, 20], [20, 0], [0, 20]],
+        "edges": [{"endpoints": [0, 1]}, {"endpoints": [1, 2]}, {"endpoints": [2, 3]}, {"endpoints": [3, 0]}]}},
+        "stitches": []}, "properties": {"units_in_meter": 100}}
+    path = tmp_path / "bow.json"
+    path.write_text(json.dumps(spec))
+    (panel,), _ = read_garmentcode(path)
+    with pytest.raises(PanelError, match="panel bow: the outline crosses itself"):
+        extract_outline(panel)
+
+
+def test_unreadable_inputs(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        read_panels(tmp_path / "missing.obj")
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nf 1 2\n")
+    with pytest.raises(InputError, match="bad.obj:2"):
+        read_panels(bad)
+
+
+# --------------------------------------------------------------------- the whole command
+
+
+@pytest.fixture
+def two_panels_and_a_hole(tmp_path):
+    """front (0.2 x 0.1) and back (beside it) sewn along their touching sides, plus a
+    panel with a hole."""
+    Va, Fa = grid(11, 6)
+    Vb, Fb = grid(11, 6, origin=(0.3, 0.0))
+    Vh, Fh, _ = bad_panels()["hole"]
+    ny = 6
+    right_of_a = [10 * ny + j for j in range(ny)]  # x = 0.2
+    left_of_b = [len(Va) + j for j in range(ny)]  # x = 0.3 (global ids)
+    stitches = [(right_of_a[j], left_of_b[j], left_of_b[j], 0.0) for j in range(ny)]
+    path = write_obj(tmp_path / "garment.obj", [("front", Va, Fa), ("back", Vb, Fb), ("holey", Vh + [0, 0.5], Fh)],
+                     [stitches])
+    return path
+
+
+def test_conform_command_partial_failure(tmp_path, capsys, two_panels_and_a_hole):
+    out = tmp_path / "out"
+    code = main(["conform", str(two_panels_and_a_hole), "-o", str(out), "--json", "--knot-span", "25"])
+    assert code == 1  # one panel failed, the others converted
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    rows = {r["panel"]: r for r in doc["panels"]}
+    assert rows["holey"]["status"] == "failed" and "hole" in rows["holey"]["error"]
+    assert "panel holey" in captured.err and "Traceback" not in captured.err
+    for name in ("front", "back"):
+        r = rows[name]
+        assert r["status"] == "ok" and r["control_points"] == [10, 6]
+        assert r["boundary_error_mm"] < 1e-6 and r["min_jacobian_ratio"] > 0.99
+        assert abs(r["area_error_pct"]) < 1e-9 and r["seconds"] > 0
+        assert set(r) >= {"panel", "status", "control_points", "boundary_error_mm", "min_jacobian_ratio",
+                          "area_error_pct", "seconds"}
+
+    ps = load_patchset(out / "patches.json")
+    assert [p.name for p in ps.patches] == ["front", "back"]
+    assert "holey" in ps.failures
+    np.testing.assert_allclose(ps.patch("front").world[..., 2], 0.5 * ps.patch("front").rest[..., 1], atol=1e-9)
+    # The seam: front's side u1 (x = 0.2) sewn to back's side u0 (x = 0.3), both along v.
+    (seam,) = ps.seams
+    assert (seam.patch_a, seam.patch_b) == ("front", "back")
+    assert [(iv.side, iv.t0, iv.t1) for iv in seam.intervals_a] == [("u1", 0.0, 4.0)]
+    assert [(iv.side, iv.t0, iv.t1) for iv in seam.intervals_b] == [("u0", 0.0, 4.0)]
+    np.testing.assert_allclose(seam.uv_a[:, 1], seam.uv_b[:, 1], atol=1e-9)
+    # Provenance: the corner vertices and each side's input boundary vertices.
+    prov = ps.provenance["front"]
+    assert prov["corner_vertex_ids"] == [0, 60, 65, 5]
+    assert prov["sides"]["u1"]["boundary_vertex_ids"] == list(range(60, 66))
+    # The file round-trips, a seam's wait for a pleat's tucks included.
+    assert seam.after == ()
+    ps.seams[0] = dataclasses.replace(seam, after=("tuck1", "tuck2"))
+    save_patchset(tmp_path / "again.json", ps)
+    again = load_patchset(tmp_path / "again.json")
+    np.testing.assert_array_equal(again.patch("back").rest, ps.patch("back").rest)
+    assert again.seams[0].intervals_b[0].side == "u0"
+    assert again.seams[0].after == ("tuck1", "tuck2")
+
+
+def test_conform_command_table_corners_and_preview(tmp_path, capsys, two_panels_and_a_hole):
+    out = tmp_path / "out"
+    png = tmp_path / "preview.png"
+    code = main(["conform", str(two_panels_and_a_hole), "-o", str(out), "--panels", "front",
+                 "--corners", "front=12,60,65,17", "--control-points", "8x6", "--preview", str(png), "-q"])
+    assert code == 0
+    table = capsys.readouterr().out
+    assert "front" in table and "8x6" in table and "holey" not in table
+    ps = load_patchset(out / "patches.json")
+    assert ps.provenance["front"]["corner_vertex_ids"] == [12, 60, 65, 17]
+    np.testing.assert_allclose(ps.patch("front").rest[0, 0], [0.04, 0.0])
+    img = np.asarray(Image.open(png).convert("RGB"))
+    assert img.shape[0] > 500 and (img < 200).any()  # something was drawn
+
+
+@pytest.mark.parametrize("args, fragment", [
+    (["--corners", "front=1,2,3"], "exactly 4"),
+    (["--corners", "nowhere=1,2,3,4"], "no panel named nowhere"),
+    (["--corners", "front=1,2,3,999"], "corner vertex 999 is not on the panel's boundary"),
+    (["--control-points", "4x9"], "N, M >= 5"),
+    (["--seam-span", "0"], "--seam-span must be positive"),
+    (["--panels", "sleeve"], "no panel named sleeve"),
+])
+def test_conform_command_bad_options(tmp_path, capsys, two_panels_and_a_hole, args, fragment):
+    code = main(["conform", str(two_panels_and_a_hole), "-o", str(tmp_path / "o"), "-q", "--panels", "front"] + args)
+    err = capsys.readouterr().err
+    assert code in (1, 2) and fragment in err and "Traceback" not in err
+
+
+def test_output_directory_that_is_a_file(tmp_path, capsys, two_panels_and_a_hole):
+    blocker = tmp_path / "taken"
+    blocker.write_text("")
+    assert main(["conform", str(two_panels_and_a_hole), "-o", str(blocker), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "taken" in err and "output directory" in err and "Traceback" not in err
+
+
+def test_patch_file_errors(tmp_path):
+    bad = tmp_path / "p.json"
+    bad.write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(InputError, match="not a patch file"):
+        load_patchset(bad)
+    bad.write_text(json.dumps({"format": "bspline-garment/patches", "version": 1, "patches": [
+        {"name": "a", "control_points": [5, 5], "rest": [[0, 0]], "world": []}]}))
+    with pytest.raises(InputError, match=r"patches\[0\]"):
+        load_patchset(bad)
+
+
+def test_seam_points_map_back_onto_the_rest_points(two_panels_and_a_hole):
+    panels, seams = read_panels(two_panels_and_a_hole)
+    ps = conform_all(panels[:2], seams, ConformOptions(knot_span=0.03))
+    (seam,) = ps.seams
+    for name, uv, pts in ((seam.patch_a, seam.uv_a, seams[0].points_a), (seam.patch_b, seam.uv_b, seams[0].points_b)):
+        np.testing.assert_allclose(rest_points(ps.patch(name).rest, uv), pts, atol=1e-9)
+    # Inverting the rest map finds interior points too.
+    X = ps.patch("front").rest
+    uv = invert(X, np.array([[0.05, 0.05], [0.17, 0.02]]))
+    np.testing.assert_allclose(rest_points(X, uv), [[0.05, 0.05], [0.17, 0.02]], atol=1e-10)
+
+
+def test_flat_meshes_in_other_formats(tmp_path):
+    Va, Fa = grid(5, 4)
+    Vb, Fb = grid(4, 4, origin=(0.5, 0.0))
+    V = np.concatenate([Va, Vb])
+    F = np.concatenate([Fa, Fb + len(Va)])
+    # Placed on a tilted plane in 3D: the rest layout is that plane's 2D frame.
+    R = np.array([[1, 0, 0], [0, np.cos(0.7), -np.sin(0.7)], [0, np.sin(0.7), np.cos(0.7)]])
+    V3 = np.column_stack([V, np.zeros(len(V))]) @ R.T + [0.1, 0.2, 0.3]
+    path = tmp_path / "flat.ply"
+    trimesh.Trimesh(V3, F, process=False).export(path)
+    panels, seams = read_panels(path)
+    assert [p.name for p in panels] == ["panel0", "panel1"] and seams == []
+    ps = conform_all(panels, [], ConformOptions(knot_span=0.05))
+    assert not ps.failures
+    np.testing.assert_allclose(ps.quality["panel0"]["input_area_m2"], 0.02, rtol=1e-6)  # PLY: float32
+    # The lift reproduces the 3D placement (an isometry of the layout).
+    W = ps.patch("panel0").world
+    d = np.linalg.norm(W[1:] - W[:-1], axis=-1) / np.linalg.norm(np.diff(ps.patch("panel0").rest, axis=0), axis=-1)
+    np.testing.assert_allclose(d, 1.0, atol=1e-5)
+    # A curved mesh without a flat layout is refused.
+    V3[:, 2] += 0.1 * V3[:, 0] ** 2
+    trimesh.Trimesh(V3, F, process=False).export(path)
+    with pytest.raises(InputError, match="not flat"):
+        read_panels(path)

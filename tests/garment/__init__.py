@@ -1,0 +1,1 @@
+"""Tests of garment/: scenes, the command line, benchmarks, long runs and whole garments."""

@@ -1,0 +1,1 @@
+"""Tests of sim/: the B-spline FEM, energies, contact, seams and the solver."""

@@ -1,0 +1,144 @@
+"""IPC contact: mapped derivatives, and no triangle ever passing through another."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from sim.errors import InputError
+from garment.io.obstacles import load_obstacle
+from garment.scene import loads_scene
+from sim.assembly import BlockPattern, add_dof_matrix
+from garment.build import build_simulator
+
+from tests.support.fd import dofs, fd_gradient, fd_hessian, gradient
+from tests.support.intersections import intersecting_pairs
+from tests.support.scenes import DROP
+
+
+def test_intersection_check_detects_crossings():
+    tri = np.array([[0, 1, 2]])
+    A = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    B = np.array([[0.2, 0.2, -0.5], [0.2, 0.2, 0.5], [0.8, 0.8, 0.5]])
+    assert intersecting_pairs(A, tri, B, tri) == 1
+    assert intersecting_pairs(A, tri, B + [0, 0, 0.6], tri) == 0
+
+
+def test_sheet_on_sphere_never_intersects():
+    sim = build_simulator(loads_scene(DROP.format(height=0.2)))
+    ball = load_obstacle(loads_scene(DROP.format(height=0.2)).obstacles[0])
+    ground_z = 0.0
+    faces = sim.model.pieces[0].topology.faces
+    for _ in range(22):  # free fall ~0.1 m, then contact with the ball
+        st = sim.step()
+        x = sim.positions("sheet")
+        assert np.all(np.isfinite(x))
+        assert intersecting_pairs(x, faces, ball.vertices, ball.faces) == 0
+        assert intersecting_pairs(x, faces) == 0
+        assert x[:, 2].min() > ground_z
+        if st.extra["contact_count"] > 0:
+            assert st.extra["min_distance"] > 0.0
+    # The sheet reached the ball and is held above it (within a few dhat of its top).
+    assert st.extra["contact_count"] > 0
+    centre = x[np.argmin(np.linalg.norm(x[:, :2], axis=1))]
+    assert 0.16 < centre[2] < 0.16 + 0.01
+
+
+def test_contact_mesh_density_sets_vertices_per_control_point():
+    # 10 x 10 control points: 14 x 14 vertices by default (about 2 per point), 10 x 10 at 1.
+    for density, n in (("", 196), ("mesh_density = 1\n", 100), ("mesh_density = 4\n", 400)):
+        scene = loads_scene(DROP.format(height=0.2).replace("[time]", density + "[time]"))
+        assert build_simulator(scene).model.barrier.contact.n_cloth == n
+
+
+def test_barrier_derivatives_on_control_points():
+    sim = build_simulator(loads_scene(DROP.format(height=0.1605)))
+    e = sim.model.barrier
+    C = sim.C.copy()
+    assert e.value(C) > 0.0  # the sheet's centre is within dhat of the ball's top
+    rng = np.random.default_rng(1)
+    C = C + 1e-5 * rng.standard_normal(C.shape) * [1, 1, 0]
+    g = np.zeros_like(C)
+    e.add_gradient(C, g)
+    active = np.flatnonzero(np.abs(g).sum(1) > 0)
+    assert active.size > 0
+    h = 1e-7
+    rows = active[:6]
+    assert fd_gradient(e, C, h, rows) == pytest.approx(g[rows], rel=1e-4, abs=1e-6 * np.abs(g).max())
+    H = e.hessian_matrix(C, project=False).toarray()
+    rows = active[:4]
+    np.testing.assert_allclose(H[:, dofs(rows)], fd_hessian(e, C, h, rows), rtol=1e-4, atol=1e-5 * np.abs(H).max())
+
+
+def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread):
+    """Back at the point before a rejected trial, the barrier reuses that point's
+    collision set; a third point rebuilds into the older one's."""
+    sim = build_simulator(loads_scene(DROP.format(height=0.1605)))
+    e = sim.model.barrier
+    C1 = sim.C.copy()
+    C2 = C1 + [0.0, 0.0, 5e-4]  # lifted past dhat: no contact
+    C3 = C1 + [0.0, 0.0, 2e-4]
+    E1, set1, n1 = e.value(C1), e.collisions, e.n_collisions
+    E2, set2 = e.value(C2), e.collisions
+    assert set2 is not set1 and n1 > 0 and e.n_collisions == 0 and E2 == 0.0
+    assert e.value(C1) == E1 and e.collisions is set1 and e.n_collisions == n1
+    E3 = e.value(C3)
+    assert e.collisions is set2 and 0.0 < E3 < E1  # C2's set, rebuilt at C3
+    assert e.value(C1) == E1 and e.collisions is set1
+    fresh = build_simulator(loads_scene(DROP.format(height=0.1605))).model.barrier
+    assert fresh.value(C3) == E3  # the reused set holds exactly C3's collisions
+
+
+def test_projected_contact_hessian_stays_psd_in_pattern():
+    """Off-pattern contact entries move to the diagonal: the assembled matrix stays PSD."""
+    free = np.arange(6)
+    pattern = BlockPattern.from_stencils(free, [np.array([[0, 1, 2], [3, 4, 5]])])
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((18, 18))
+    H = A @ A.T  # dense PSD: couples blocks (0, 3) etc. that the pattern lacks
+    data = np.zeros(pattern.nnz)
+    moved = add_dof_matrix(pattern, sp.csr_matrix(H), data)
+    assert moved > 0
+    assert np.linalg.eigvalsh(pattern.full(data).toarray()).min() > -1e-9
+
+
+def test_initial_intersection_is_an_input_error():
+    with pytest.raises(InputError, match="intersect"):
+        build_simulator(loads_scene(DROP.format(height=0.1)))
+
+
+def test_friction_derivatives_on_control_points():
+    text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-2")
+    sim = build_simulator(loads_scene(text))
+    f = sim.model.friction
+    f.lag(sim.C)
+    assert f.active
+    rng = np.random.default_rng(2)
+    # Slide tangentially by more than eps_v dt (dynamic regime) at some points, less at others.
+    C = sim.C + 1e-4 * rng.standard_normal(sim.C.shape) * [1, 1, 0]
+    g = gradient(f, C)
+    rows = np.flatnonzero(np.abs(g).sum(1) > 0)
+    assert rows.size > 0 and f.value(C) > 0.0
+    # Central differences of value -> gradient and gradient -> Hessian columns.
+    rows, h = rows[:4], 1e-8
+    H = f.hessian_matrix(C, project=False).toarray()
+    assert fd_gradient(f, C, h, rows) == pytest.approx(g[rows], rel=1e-4, abs=1e-4 * np.abs(g).max())
+    np.testing.assert_allclose(H[:, dofs(rows)], fd_hessian(f, C, h, rows), rtol=1e-4, atol=1e-4 * np.abs(H).max())
+
+
+def test_friction_opposes_sliding():
+    """The friction force on a sliding sheet points against the slide, with magnitude
+    mu x (normal force) once the slide is faster than eps_v."""
+    text = DROP.format(height=0.1605).replace("kappa = 1e5", "kappa = 1e5\nmu = 0.3\neps_v = 1e-3")
+    sim = build_simulator(loads_scene(text))
+    sim.model.friction.lag(sim.C)
+    slide = np.array([0.01, 0.0, 0.0])  # 1 m/s over dt = 0.01 s, far above eps_v
+    g = np.zeros_like(sim.C)
+    sim.model.friction.add_gradient(sim.C + slide, g)
+    gb = np.zeros_like(sim.C)
+    sim.model.barrier.add_gradient(sim.C, gb)
+    assert g[:, 0].sum() > 0.0  # energy grows along the slide: the force opposes it
+    assert abs(g[:, 1].sum()) < 0.05 * g[:, 0].sum()  # no sideways force
+    normal = np.abs(gb[:, 2].sum())
+    assert g[:, 0].sum() == pytest.approx(0.3 * normal, rel=0.05)

@@ -1,0 +1,1 @@
+"""Tests of viz/: Rerun recordings, renders and the logging overhead."""
