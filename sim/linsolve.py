@@ -20,7 +20,7 @@ from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
 from . import supernodal
 
 # CHOLMOD's supernodal factorization spends its time in dense BLAS on the fronts. BLAS
-# runs on one thread by default (garment/_threads.py: small systems lose more to hand-offs
+# runs on one thread by default (sim/threads.py: small systems lose more to hand-offs
 # with numba than they gain); large ones gain from more. Merged dress Hessian, 2 cores,
 # analysis + factorization: 61K rows 1.23 -> 0.99 s with 2 threads, 17K rows no gain.
 PARALLEL_ROWS = 30_000

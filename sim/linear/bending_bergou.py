@@ -17,7 +17,7 @@ energy, which on cylinders measures 3 x the smooth energy D/2 int (2H)^2 dA (tes
 grid and equilateral meshes, ratio 2.96-2.98 at 81 vertices a side, -> 3). The
 B-spline cloth uses D/2 |Laplacian phi|^2 with D = E h^3 / (12 (1 - nu^2)), so for the
 same bending model we take c_e = D / (A_1 + A_2): Bergou's form with D / 3. With it the
-plate deflection converges to the Navier solution (tests/test_linear_fem.py).
+plate deflection converges to the Navier solution (tests/sim/test_linear_fem.py).
 
 Written as the Laplacian bending of sim/energies/bending.py with one "point" per edge:
 weight w_e = A_1 + A_2 (m^2) and coefficients lap_e = K / w_e (a discrete Laplacian,
