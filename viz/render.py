@@ -91,6 +91,11 @@ class FrameBuffer:
         self.meshes: list[MeshTopology] = []
         self._frames: list[FrameData] = []
 
+    @staticmethod
+    def bytes_for(frames: int, vertices: int) -> float:
+        """Memory the buffer takes for `frames` frames of `vertices` vertices in all."""
+        return 12.0 * frames * vertices
+
     def open(self, meshes: list[MeshTopology]) -> None:
         self.meshes = list(meshes)
         self._frames = []

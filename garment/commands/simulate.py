@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from rich.markup import escape
 
+from sim.budget import BASE_BYTES, require_memory
 from sim.errors import InputError, Interrupted
 from sim.files import output_file, output_folder, remove_partial_files
 from garment.scene import Scene, TimeSpec, load_scene
@@ -93,6 +94,11 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
     if render_to is not None:
         from viz.render import FrameBuffer
 
+        vertices = sum(int(m.faces.max(initial=-1)) + 1 for m in sim.model.topologies())
+        need = FrameBuffer.bytes_for(scene.time.frames + 1, vertices)
+        require_memory(BASE_BYTES + need, f"--render: keeping {scene.time.frames + 1} frames of {vertices} "
+                       "vertices for the video", "render fewer frames (--frames), or write the recording "
+                       "(-o) without --render")
         frames = FrameBuffer()
         sinks.append(frames)
 
@@ -165,12 +171,12 @@ def default_checkpoint(rrd: Path | None, mesh_dir: Path | None) -> Path | None:
 
 
 class StopOnSignal:
-    """SIGINT/SIGTERM while active: the first asks the run to stop after the current step
-    (`requested()`), a second exits at once (status 130): files being written are removed,
-    the recording keeps what was flushed (sim.files.remove_partial_files). Handlers are
-    restored on exit."""
+    """SIGINT/SIGTERM/SIGHUP while active: the first asks the run to stop after the current
+    step (`requested()`), a second exits at once (status 130): files being written are
+    removed, the recording keeps what was flushed (sim.files.remove_partial_files).
+    Handlers are restored on exit."""
 
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
     def __init__(self, quiet: bool = False):
         self.quiet = quiet

@@ -17,7 +17,6 @@ curve (`segment_bulge`, so pieces of a split panel know their exact areas too).
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 

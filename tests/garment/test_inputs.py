@@ -25,24 +25,13 @@ from sim.budget import memory_limit, parse_bytes, simulation_bytes
 from sim.errors import InputError, printable
 from sim.files import atomic_write, read_npz, remove_partial_files, track_partial
 
-from tests.garment.test_gauntlet import check_clean_failure
+from tests.garment.test_gauntlet import SCENE, check_clean_failure
 from tests.support.panels import grid, write_obj
 from tests.support.paths import ASSETS, ROOT, SHARED_ASSETS
 
-SHEET = """
-[[cloth]]
-name = "sheet"
-size = [0.3, 0.3]
-control_points = [6, 6]
-origin = [-0.15, -0.15, 0.2]
-
-[time]
-dt = 0.01
-frames = 2
-"""
 
 
-def scene_file(tmp_path: Path, text: str = SHEET) -> Path:
+def scene_file(tmp_path: Path, text: str = SCENE) -> Path:
     path = tmp_path / "scene.toml"
     path.write_text(text)
     return path
@@ -155,7 +144,7 @@ def test_a_reader_that_exits_or_prints_is_contained(tmp_path, monkeypatch, capsy
 def test_a_simulation_that_will_not_fit_is_refused_up_front(tmp_path):
     """control_points = [20000, 20000] was killed for memory; it is refused in seconds,
     with the estimate, the machine's memory and the setting to change."""
-    scene = scene_file(tmp_path, SHEET.replace("[6, 6]", "[20000, 20000]"))
+    scene = scene_file(tmp_path, SCENE.replace("[6, 6]", "[20000, 20000]"))
     start = time.perf_counter()
     r = run_cli("simulate", str(scene), "-o", str(tmp_path / "run.rrd"), "-q", timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr
@@ -179,11 +168,20 @@ def test_the_memory_limit_comes_from_the_machine_or_the_override(tmp_path, monke
     assert 0.5e9 < simulation_bytes(100**2) < 0.9e9
     assert 3.2e9 < simulation_bytes(300**2) < 4.0e9  # measured 3.4 GB
     monkeypatch.setenv("GARMENT_MEMORY_LIMIT", "300M")
-    scene = scene_file(tmp_path, SHEET.replace("[6, 6]", "[100, 100]"))
+    scene = scene_file(tmp_path, SCENE.replace("[6, 6]", "[100, 100]"))
     code = main(["simulate", str(scene), "-q"])
     check_clean_failure(code, capsys.readouterr().err, [
         "simulating 10000 control points (30000 DOFs) needs about 660.3 MiB", "GARMENT_MEMORY_LIMIT (300.0 MiB)",
         "reduce control_points of cloth 'sheet' (now 100 x 100)"], [])
+
+
+def test_a_render_whose_frames_will_not_fit_is_refused_before_the_run(tmp_path, capsys, monkeypatch):
+    """--render keeps every frame in memory (12 bytes per vertex and frame)."""
+    monkeypatch.setenv("GARMENT_MEMORY_LIMIT", "450M")
+    video = tmp_path / "v.mp4"
+    code = main(["simulate", str(scene_file(tmp_path)), "--frames", "100000", "--render", str(video), "-q"])
+    check_clean_failure(code, capsys.readouterr().err, [
+        "--render: keeping 100001 frames of", "vertices for the video needs about", "render fewer frames"], [video])
 
 
 def test_metres_typed_for_millimetres_are_refused_with_the_fix(tmp_path, capsys):
@@ -305,7 +303,7 @@ def test_frames_below_one_are_rejected_like_the_scene_file_does(tmp_path, capsys
     code = main(["simulate", str(scene), "-o", str(tmp_path / "run.rrd"), "-q", "--frames", frames])
     check_clean_failure(code, capsys.readouterr().err, [f"--frames: must be >= 1, got {frames}"],
                         [tmp_path / "run.rrd"])
-    scene.write_text(SHEET.replace("frames = 2", f"frames = {frames}"))
+    scene.write_text(SCENE.replace("frames = 2", f"frames = {frames}"))
     code = main(["simulate", str(scene), "-q"])
     check_clean_failure(code, capsys.readouterr().err, [f"time.frames: must be >= 1, got {frames}"], [])
 
@@ -335,7 +333,7 @@ def test_command_line_numbers_are_checked(tmp_path, capsys, option, value, fragm
 
 
 def test_a_cloth_in_centimetres_is_refused_with_the_fix(tmp_path, capsys):
-    scene = scene_file(tmp_path, SHEET.replace("[0.3, 0.3]", "[60, 60]"))
+    scene = scene_file(tmp_path, SCENE.replace("[0.3, 0.3]", "[60, 60]"))
     check_clean_failure(main(["simulate", str(scene), "-q"]), capsys.readouterr().err, [
         "scene.toml: cloth[0].size[0]: 60 m is above 20 m, not a plausible value; looks like centimetres: "
         "write 0.6"], [])
@@ -344,12 +342,12 @@ def test_a_cloth_in_centimetres_is_refused_with_the_fix(tmp_path, capsys):
 def test_a_static_obstacle_in_centimetres_is_refused_with_the_fix(tmp_path, capsys):
     """An animated body in cm was caught; a static one was not."""
     trimesh.creation.icosphere(subdivisions=2, radius=80.0).export(tmp_path / "body.obj")  # 1.6 m, in cm
-    scene = scene_file(tmp_path, SHEET + '\n[[obstacle]]\nname = "body"\nmesh = "body.obj"\n')
+    scene = scene_file(tmp_path, SCENE + '\n[[obstacle]]\nname = "body"\nmesh = "body.obj"\n')
     check_clean_failure(main(["simulate", str(scene), "-q"]), capsys.readouterr().err, [
         "body.obj: the obstacle is 160 m across after scaling; the file is probably not in metres (looks like "
         "centimetres: set scale = 0.01)"], [])
     # With scale = 0.1 the fix is relative to it: 0.001.
-    scene.write_text(SHEET + '\n[[obstacle]]\nname = "body"\nmesh = "body.obj"\nscale = 0.1\n')
+    scene.write_text(SCENE + '\n[[obstacle]]\nname = "body"\nmesh = "body.obj"\nscale = 0.1\n')
     check_clean_failure(main(["simulate", str(scene), "-q"]), capsys.readouterr().err, [
         "16 m across after scaling", "set scale = 0.001"], [])
 
@@ -384,7 +382,7 @@ def test_a_folder_where_a_file_is_expected_is_named_as_a_folder(tmp_path, capsys
     ):
         check_clean_failure(main(args), capsys.readouterr().err, [fragment], [tmp_path / "o"])
     for key in ('[[obstacle]]\nname = "body"\nmesh = "thing.obj"', '[[garment]]\nsource = "thing.obj"'):
-        scene = scene_file(tmp_path, SHEET + "\n" + key + "\n")
+        scene = scene_file(tmp_path, SCENE + "\n" + key + "\n")
         check_clean_failure(main(["simulate", str(scene), "-q"]), capsys.readouterr().err,
                             ["thing.obj is a folder, not a file"], [])
 
@@ -401,7 +399,7 @@ def test_binary_garbage_is_never_echoed_raw(tmp_path, capsys):
     check_clean_failure(code, err, ["junk.obj:2: cannot read", "\\x1b[31mRED\\x07\\x00", "..."], [])
     assert all(c.isprintable() or c == "\n" for c in err) and len(err) < 300
     (tmp_path / "b.obj").write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n" + GARBAGE)
-    scene = scene_file(tmp_path, SHEET + '\n[[obstacle]]\nname = "b"\nmesh = "b.obj"\n')
+    scene = scene_file(tmp_path, SCENE + '\n[[obstacle]]\nname = "b"\nmesh = "b.obj"\n')
     code = main(["simulate", str(scene), "-q"])
     err = capsys.readouterr().err
     assert code == 2 and all(c.isprintable() or c == "\n" for c in err) and "Traceback" not in err
@@ -427,7 +425,7 @@ def test_rerun_log_lines_do_not_leak_before_inspects_error(tmp_path):
 def test_inspect_render_killed_by_sigterm_leaves_no_temporary_video(tmp_path):
     """`inspect --render` killed by SIGTERM left `.clip.<pid>.tmp.mp4` (the cleanup ran on
     exceptions only); SIGTERM now stops it like Ctrl-C: status 130, nothing left."""
-    scene = scene_file(tmp_path, SHEET.replace("frames = 2", "frames = 200"))
+    scene = scene_file(tmp_path, SCENE.replace("frames = 2", "frames = 200"))
     rrd = tmp_path / "run.rrd"
     assert main(["simulate", str(scene), "-o", str(rrd), "-q"]) == 0
     out = tmp_path / "video"
