@@ -346,7 +346,7 @@ def add_render_options(p) -> None:
     p.add_argument("--orbit", action="store_true", help="orbit the camera once around the scene")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (30)")
     p.add_argument("--up", choices=tuple(UP_VECTORS), help="the vertical of the picture "
-                   "(simulate: against the scene's gravity; inspect: z)")
+                   "and the up axis of a USD export (simulate: against the scene's gravity; inspect: z)")
 
 
 def register(sub) -> None:
