@@ -70,19 +70,18 @@ def _listening(port: int) -> bool:
 
 
 class WebViewer:
-    """A `rerun` child process serving a recording read by `viz.recording.load_recording`
-    (see the module docstring).
+    """A `rerun` child process serving recordings read by `viz.recording.load_recording`
+    (see the module docstring; the parts of a resumed run are served together).
 
     `start()` returns once both ports accept connections and the recording is sent to the
     server; `url` is the page to open;
     `stop()` ends the child (SIGTERM, then SIGKILL after `grace` s). Also a context manager.
-    The server buffers the recording in memory: the limit is 4x the file size, at least
+    The server buffers the recordings in memory: the limit is 4x the files' size, at least
     1 GiB (rerun drops the oldest data beyond it).
     """
 
-    def __init__(self, recording: Recording, web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT):
-        self.recording = recording
-        self.rrd = Path(recording.path)
+    def __init__(self, recordings: list[Recording], web_port: int = WEB_PORT, grpc_port: int = GRPC_PORT):
+        self.recordings = recordings
         self.web_port, self.grpc_port = web_port, grpc_port
         self.process: subprocess.Popen | None = None
         self._log = None
@@ -96,7 +95,8 @@ class WebViewer:
         return f"http://{HOST}:{self.web_port}/?url={quote(self.grpc_url, safe='')}"
 
     def command(self) -> list[str]:
-        limit_gib = max(1, -(-4 * self.rrd.stat().st_size // 2**30))
+        size = sum(Path(r.path).stat().st_size for r in self.recordings)
+        limit_gib = max(1, -(-4 * size // 2**30))
         return [str(rerun_executable()), "--serve-web", "--bind", HOST, "--web-viewer-port", str(self.web_port),
                 "--port", str(self.grpc_port), "--server-memory-limit", f"{limit_gib}GiB"]
 
@@ -124,8 +124,9 @@ class WebViewer:
 
         from .recording import replay
 
-        # Under the file's own ids: the viewer lists one recording, not also the replay's.
-        replay(self.rrd, rr.GrpcSink(self.grpc_url), self.recording.application_id, self.recording.recording_id)
+        for r in self.recordings:
+            # Under the file's own ids: the viewer lists the file's recording, not also the replay's.
+            replay(r.path, rr.GrpcSink(self.grpc_url), r.application_id, r.recording_id)
         return self
 
     def _last_line(self) -> str:

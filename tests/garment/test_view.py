@@ -50,10 +50,10 @@ def free_ports(n: int) -> list[int]:
     return ports
 
 
-def start_view(rrd, web: int, grpc: int) -> tuple[subprocess.Popen, str]:
+def start_view(rrds, web: int, grpc: int) -> tuple[subprocess.Popen, str]:
     """`garment view` in a subprocess; returns it and the URL it printed."""
     env = dict(os.environ, NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", ".cache/numba"))
-    proc = subprocess.Popen([sys.executable, "-m", "garment.cli", "view", str(rrd), "--port", str(web),
+    proc = subprocess.Popen([sys.executable, "-m", "garment.cli", "view", *map(str, rrds), "--port", str(web),
                              "--grpc-port", str(grpc)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, cwd=ROOT)
     url = proc.stdout.readline().strip()  # printed once serving; EOF if it failed
@@ -92,7 +92,7 @@ def cloth_fraction(rgb: np.ndarray) -> float:
 @pytest.mark.skipif(browser.CHROMIUM is None, reason="needs Debian's chromium (scripts/setup.sh installs it)")
 def test_the_browser_shows_the_cloth_and_ctrl_c_stops_it(rrd, tmp_path):
     web, grpc = free_ports(2)
-    proc, url = start_view(rrd, web, grpc)
+    proc, url = start_view([rrd], web, grpc)
     try:
         assert url == f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy"
         assert listening_on(web) == listening_on(grpc) == {"127.0.0.1"}  # this machine only
@@ -109,10 +109,14 @@ def test_the_browser_shows_the_cloth_and_ctrl_c_stops_it(rrd, tmp_path):
     assert not port_in_use(web) and not port_in_use(grpc)  # the server is gone
 
 
-def test_sigterm_stops_it(rrd):
+def test_sigterm_stops_it(rrd, tmp_path):
+    """Also two files, as a resumed run's parts are served."""
+    part2 = tmp_path / "run.part2.rrd"
+    part2.write_bytes(rrd.read_bytes())
     web, grpc = free_ports(2)
-    proc, _ = start_view(rrd, web, grpc)
-    stop(proc, signal.SIGTERM)
+    proc, _ = start_view([rrd, part2], web, grpc)
+    err = stop(proc, signal.SIGTERM)
+    assert f"serving {rrd} (8 frames" in err and f"serving {part2} (8 frames" in err
     deadline = time.monotonic() + 5
     while port_in_use(web) and time.monotonic() < deadline:
         time.sleep(0.05)
