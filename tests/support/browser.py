@@ -85,7 +85,7 @@ def screenshots(url: str, size: tuple[int, int], ready: Callable[[np.ndarray], b
         [CHROMIUM, *FLAGS, "--remote-debugging-pipe", f"--user-data-dir={profile}",
          f"--window-size={size[0]},{size[1]}", "about:blank"],
         close_fds=False, preexec_fn=_with_pipe_fds(cmd_r, res_w),  # close_fds would close 3 and 4
-        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=None)
+        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     os.close(cmd_r)
     os.close(res_w)
     start = time.monotonic()
