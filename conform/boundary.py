@@ -15,6 +15,11 @@ from sim.errors import InputError
 from sim.patches import Panel
 
 
+# Point pairs handled at once by the all-pairs loops below: about 100 MB of temporaries.
+_PAIR_BLOCK = 2_000_000
+_ALL_PAIRS = 1000  # hull points up to which the diameter compares all pairs
+
+
 class PanelError(InputError):
     """A panel that cannot be conformed; the message names the file and the panel."""
 
@@ -211,9 +216,34 @@ def diameter(points: np.ndarray) -> float:
     try:
         h = points[ConvexHull(points).vertices]
     except Exception:  # collinear points
-        h = points
-    d = h[:, None, :] - h[None, :, :]
-    return float(np.sqrt((d**2).sum(-1).max()))
+        h = points[[np.argmin(points[:, 0]), np.argmax(points[:, 0]), np.argmin(points[:, 1]),
+                    np.argmax(points[:, 1])]]
+    if len(h) <= _ALL_PAIRS:
+        d = h[:, None, :] - h[None, :, :]
+        return float(np.sqrt((d**2).sum(-1).max()))
+    # A finely sampled round outline has every point on its hull: all pairs of the
+    # 99883 points of a circle skirt took 149 GiB. Rotating calipers: O(hull) instead.
+    return _caliper_diameter(h)
+
+
+def _caliper_diameter(h: np.ndarray) -> float:
+    """Diameter of the convex polygon h (H, 2), counter-clockwise (scipy's hull order):
+    the farthest pair is an antipodal pair, found by walking the far vertex j with the
+    edge i -> i + 1."""
+    x, y = h[:, 0].tolist(), h[:, 1].tolist()
+    H = len(x)
+
+    def height(i: int, k: int) -> float:  # twice the area of (i, i + 1, k)
+        i1 = (i + 1) % H
+        return (x[i1] - x[i]) * (y[k] - y[i]) - (y[i1] - y[i]) * (x[k] - x[i])
+
+    best, j = 0.0, 1
+    for i in range(H):
+        while height(i, (j + 1) % H) > height(i, j):
+            j = (j + 1) % H
+        for a in (i, (i + 1) % H):
+            best = max(best, (x[a] - x[j]) ** 2 + (y[a] - y[j]) ** 2)
+    return float(np.sqrt(best))
 
 
 def _make(panel: Panel, loop, pts, area) -> Outline:
@@ -238,6 +268,7 @@ def self_intersections(P: np.ndarray, chunk: int = 512) -> list[tuple[int, int]]
     """Pairs (i, j), i < j, of non-adjacent segments P_i P_i+1 of the closed polygon P that
     intersect (touching counts)."""
     B = P.shape[0]
+    chunk = max(1, min(chunk, _PAIR_BLOCK // max(B, 1)))  # chunk x B candidate arrays
     a, b = P, np.roll(P, -1, axis=0)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     tol = 1e-12 * float(np.ptp(P, axis=0).max())

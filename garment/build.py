@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.budget import require_memory, simulation_bytes
+from sim.errors import InputError
 from sim.linear.model import cloth_mesh, linear_model, select_vertices
 from sim.linear.mesh import TriangleMesh
 from sim.model import ContactOptions, bspline_model
@@ -27,16 +29,20 @@ from .io.obstacles import load_obstacle
 def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: bool = False) -> Simulator:
     """The B-spline simulation of `scene` (garment.scene.Scene). keep_crossings: see
     sim.model.Model (states handed over from a coarser run only)."""
+    check_memory(scene)  # before the cloths' nets are even allocated
     patches = [c.patch() for c in scene.cloths]
     groups = _pins(scene, [p.shape for p in patches], [p.n_control_points for p in patches],
                    lambda pin, shape: select(shape, pin.corners, pin.sides, pin.box, pin.depth))
     directions = _pressure_directions(scene)
     materials = [c.material for c in scene.cloths]
     seams, stiffness = [], []
+    garment_patches = {}
     for g in scene.garments:
-        ps = load_garment(g)
+        ps = garment_patches[g.name] = load_garment(g)
         name = {p.name: f"{g.name}.{p.name}" for p in ps.patches}
         for p in ps.patches:
+            if not (np.all(np.isfinite(p.rest)) and np.all(np.isfinite(p.world))):
+                raise InputError(f"{g.source}: garment {g.name!r}: patch {p.name} has non-finite control points")
             patches.append(Patch(name[p.name], p.rest, p.world))
             materials.append(g.material)
             directions.append(np.array([0.0, 0.0, 1.0]))
@@ -46,6 +52,7 @@ def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: 
         stiffness += [g.seam_stiffness] * len(ps.seams)
     tm = scene.time
     obstacles = [load_obstacle(o) for o in scene.obstacles]
+    check_memory(scene, garment_patches, sum(len(o.vertices) for o in obstacles))
     # Pre-roll: bodies hold their first pose while the seams close; inset bodies grow
     # back in its second half, once the seams are sewn.
     sewn = 0.5 * tm.preroll if any(o.inset > 0.0 for o in scene.obstacles) else tm.preroll
@@ -78,6 +85,28 @@ def build_linear_simulator(scene, resolution=None, layout: str = "grid",
                          NewtonOptions.for_time(tm, newton), contact_options(scene.contact),
                          [load_obstacle(o) for o in scene.obstacles], [c.name for c in scene.cloths])
     return Simulator(model)
+
+
+def check_memory(scene, garments: dict | None = None, obstacle_vertices: int = 0) -> None:
+    """Refuse a scene whose simulation would not fit in memory (sim/budget.py), naming the
+    setting to change: the largest cloth's control_points or garment's knot_span_mm.
+    garments: name -> PatchSet once conformed (before: cloths only)."""
+    parts = [(c.control_points[0] * c.control_points[1],
+              f"control_points of cloth {c.name!r} (now {c.control_points[0]} x {c.control_points[1]})")
+             for c in scene.cloths]
+    specs = {g.name: g for g in scene.garments}
+    parts += [(sum(p.n_control_points for p in ps.patches),
+               f"raise knot_span_mm of garment {name!r} (now {specs[name].knot_span * 1e3:g} mm)")
+              for name, ps in (garments or {}).items()]
+    if not parts:
+        return
+    total = sum(n for n, _ in parts)
+    contact = scene.contact.mesh_density * total + obstacle_vertices if scene.contact.enabled else 0
+    largest = max(parts)[1]
+    fix = largest if largest.startswith("raise") else f"reduce {largest}"
+    where = scene.path if scene.path is not None else scene.name
+    require_memory(simulation_bytes(total, int(contact)),
+                   f"{where}: simulating {total} control points ({3 * total} DOFs)", fix)
 
 
 def contact_options(spec) -> ContactOptions:

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 
 from garment.commands import COMMANDS
-from sim.errors import InputError, RunStopped
+from sim.errors import InputError, RunStopped, printable
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,19 +24,31 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _terminate(signum, _frame):
+    """SIGTERM (and SIGHUP) stop a command as Ctrl-C does, so every `finally` runs and no
+    temporary file stays behind; `garment simulate` handles them itself while it runs."""
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {s: signal.signal(s, _terminate) for s in (signal.SIGTERM, signal.SIGHUP)}
     try:
         return args.func(args)
     except InputError as e:
-        print(f"error: {e}", file=sys.stderr)  # plain: no markup, no wrapping
+        print(f"error: {printable(e)}", file=sys.stderr)  # plain: no markup, no wrapping
         return 2
     except RunStopped as e:
-        print(f"{e.prefix}: {e}", file=sys.stderr)
+        print(f"{e.prefix}: {printable(e)}", file=sys.stderr)
         return e.exit_code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 if __name__ == "__main__":

@@ -40,7 +40,7 @@ def write_checkpoint(path: str | os.PathLike, state: State, frame: int, scene_ha
 def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
     """Read a checkpoint; InputError naming the file when it is missing or unreadable."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no checkpoint to resume from (run without --resume first)")
 
     def read(d):
@@ -50,4 +50,4 @@ def read_checkpoint(path: str | os.PathLike) -> Checkpoint:
     try:
         return load_npz(path, read)
     except InputError as e:
-        raise InputError(str(e).replace("not a readable state file", "not a readable checkpoint")) from None
+        raise InputError(str(e).replace("state file", "checkpoint")) from None

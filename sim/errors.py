@@ -27,3 +27,13 @@ class Interrupted(RunStopped):
 
     exit_code = 130
     prefix = "interrupted"
+
+
+def printable(text: object, limit: int = 2000) -> str:
+    """`text` safe for a terminal: control characters (escape sequences, NUL, bell) and
+    other unprintable ones written as Python escapes (\\x1b), at most `limit` characters."""
+    s = str(text)
+    s = "".join(c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in s)
+    if len(s) > limit:
+        s = f"{s[:limit]}... ({len(s) - limit} more characters)"
+    return s

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import copy
 import os
-import zipfile
 from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, printable
+from .files import atomic_write, read_npz
 
 FORMAT = 2  # bump when the set of fields changes
 
@@ -89,29 +89,21 @@ class State:
 
 
 def write_npz(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as f:  # a file object: np.savez would append ".npz" to a path
-            np.savez(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())  # the rename must never expose a file whose data is still in flight
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    """Write `arrays` to an NPZ atomically, its data on disk before the rename."""
+    with atomic_write(path, fsync=True) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)  # a file object: np.savez would append ".npz" to a path
+    return Path(path)
 
 
 def load_npz(path: str | os.PathLike, read):
-    """read(npz) on the file at `path`; any failure becomes an InputError naming it."""
+    """read(arrays by name) on the NPZ at `path`; any failure becomes an InputError naming it."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: no such state file")
+    arrays = read_npz(path, "state file")
     try:
-        with np.load(path, allow_pickle=False) as d:
-            return read(d)
-    except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as e:
-        if isinstance(e, InputError):
-            raise
-        raise InputError(f"{path}: not a readable state file ({e})") from None
+        return read(arrays)
+    except InputError:
+        raise
+    except (KeyError, ValueError, TypeError, IndexError) as e:
+        raise InputError(f"{path}: not a readable state file ({printable(e, 200)})") from None

@@ -28,6 +28,7 @@ from rerun.chunk import RrdReader
 from rerun.error_utils import RerunWarning
 
 from sim.errors import InputError
+from sim.files import atomic_write, input_file, output_file
 
 from .rerun_sink import BODIES, CLOTH, STATS
 
@@ -248,9 +249,7 @@ def _salvage(path: Path, tmpdir: str) -> Path:
 def load_recording(path: str | os.PathLike) -> Recording:
     """Read the recording at `path`. Raises InputError if the file is missing or nothing
     can be read from it; a damaged file that still yields data gives `damaged` set."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    path = input_file(path, "Rerun recording (.rrd)")
     try:
         reader, store = _open(path)
         return _read(path, reader, store, None)
@@ -349,23 +348,15 @@ def export_mesh(path: str | os.PathLike, verts: np.ndarray, faces: np.ndarray) -
     exactly) or `.ply` (binary, float32 vertices). Written to a temporary name first."""
     import meshio
 
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in (".obj", ".ply"):
-        raise InputError(f"{path}: export format must be .obj or .ply")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        if suffix == ".obj":
+    path = output_file(path, (".obj", ".ply"), "the exported mesh")
+    with atomic_write(path) as tmp:
+        if path.suffix.lower() == ".obj":
             with open(tmp, "w") as f:
                 np.savetxt(f, verts, fmt="v %.9g %.9g %.9g")
                 np.savetxt(f, np.asarray(faces) + 1, fmt="f %d %d %d")
         else:
             mesh = meshio.Mesh(np.asarray(verts, np.float32), [("triangle", np.asarray(faces, np.int32))])
             meshio.write(tmp, mesh, file_format="ply", binary=True)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return path
 
 

@@ -17,6 +17,7 @@ import os
 # Must be set before vtk is imported anywhere; setdefault keeps a user's choice.
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkOSOpenGLRenderWindow")
 
+import contextlib  # noqa: E402
 import math  # noqa: E402
 from collections.abc import Callable, Iterable, Iterator  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
@@ -24,6 +25,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from sim.files import atomic_write  # noqa: E402
 from sim.sinks import Frame, MeshTopology  # noqa: E402
 
 from .rerun_sink import normals_operator, vertex_normals  # noqa: E402
@@ -237,6 +239,8 @@ class SceneRenderer:
 
 
 class _PngWriter:
+    """One PNG per frame, each written whole (sim.files.atomic_write)."""
+
     def __init__(self, directory: Path):
         self.directory = directory
         directory.mkdir(parents=True, exist_ok=True)
@@ -244,35 +248,29 @@ class _PngWriter:
     def write(self, index: int, image: np.ndarray) -> None:
         import imageio.v2 as iio
 
-        iio.imwrite(self.directory / f"frame_{index:05d}.png", image)
-
-    def close(self) -> None:
-        pass
+        with atomic_write(self.directory / f"frame_{index:05d}.png", keep_suffix=True) as tmp:
+            iio.imwrite(tmp, image)
 
 
 class _VideoWriter:
-    """MP4 (H.264 through imageio-ffmpeg) or GIF (Pillow), written to a temporary name
-    and renamed when complete."""
+    """MP4 (H.264 through imageio-ffmpeg) or GIF (Pillow) at `path` (render() hands it a
+    temporary name, renamed when the video is complete)."""
 
     def __init__(self, path: Path, fps: float):
         import imageio.v2 as iio
 
-        self.path = path
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self.tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
         if path.suffix.lower() == ".mp4":
             # macro_block_size=2: keep the exact (even) size instead of padding to 16.
-            self.writer = iio.get_writer(self.tmp, fps=fps, codec="libx264", quality=8,
+            self.writer = iio.get_writer(path, fps=fps, codec="libx264", quality=8,
                                          pixelformat="yuv420p", macro_block_size=2)
         else:
-            self.writer = iio.get_writer(self.tmp, mode="I", duration=1000.0 / fps, loop=0)
+            self.writer = iio.get_writer(path, mode="I", duration=1000.0 / fps, loop=0)
 
     def write(self, index: int, image: np.ndarray) -> None:
         self.writer.append_data(image)
 
     def close(self) -> None:
         self.writer.close()
-        os.replace(self.tmp, self.path)
 
 
 def render(
@@ -297,20 +295,19 @@ def render(
         raise ValueError("no frames to render")
     if bounds is None:
         bounds = scene_bounds(frames)
-    renderer = SceneRenderer(meshes, bounds, options, first=frames[0][2])
-    writer = _PngWriter(out) if kind == "png" else _VideoWriter(out, options.fps)
-    try:
+    with contextlib.ExitStack() as stack:  # unwinds in reverse: writer, file, renderer
+        renderer = SceneRenderer(meshes, bounds, options, first=frames[0][2])
+        stack.callback(renderer.close)
+        if kind == "png":
+            writer = _PngWriter(out)
+        else:  # renamed into place when complete, removed when failed or interrupted half way
+            writer = _VideoWriter(stack.enter_context(atomic_write(out, keep_suffix=True)), options.fps)
+            stack.callback(writer.close)
         for k, (index, _, positions) in enumerate(frames):
             turn = k / len(frames) if options.orbit else 0.0
             writer.write(index, renderer.image(positions, turn))
             if on_frame is not None:
                 on_frame(k)
-        writer.close()
-    finally:
-        renderer.close()
-        tmp = getattr(writer, "tmp", None)
-        if tmp is not None and tmp.exists():  # failed half way: leave no partial video
-            tmp.unlink()
     return out
 
 

@@ -33,6 +33,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 import scipy.sparse as sp
 
+from sim.files import temporary_name, track_partial, untrack_partial
 from sim.sinks import Frame, MeshTopology
 from sim.stats import StepStats
 
@@ -182,7 +183,7 @@ class RerunSink:
         self._last_flush = 0.0
         self.seconds = 0.0
         self.server_uri: str | None = None
-        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp") if self.path else None
+        self._tmp = temporary_name(self.path) if self.path else None
         self._rec: rr.RecordingStream | None = None
         self._meshes: dict[str, MeshTopology] = {}
         self._incidence: dict[str, sp.csr_matrix] = {}
@@ -204,6 +205,7 @@ class RerunSink:
         sinks = []
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            track_partial(self._tmp, self.path)  # a hard exit keeps what was flushed
             sinks.append(rr.FileSink(self._tmp))
         if self.connect is not None:
             sinks.append(rr.GrpcSink(self.connect))
@@ -309,5 +311,7 @@ class RerunSink:
     def _finish(self) -> None:
         self._rec.disconnect()  # drops the sinks: closes the file, stops a server
         self._rec = None
-        if self._tmp is not None and self._tmp.exists():
-            os.replace(self._tmp, self.path)
+        if self._tmp is not None:
+            untrack_partial(self._tmp)
+            if self._tmp.exists():
+                os.replace(self._tmp, self.path)

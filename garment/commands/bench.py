@@ -4,27 +4,36 @@ from __future__ import annotations
 
 import json
 
+from sim.budget import require_memory, simulation_bytes
+from sim.errors import InputError
+
 from .console import print_table, progress
+from .options import number_option
 
 
 def run(args) -> int:
     from garment.bench import BENCHMARKS
 
     bench = BENCHMARKS[args.name]
+    if args.resolution is not None:
+        number_option("--resolution", args.resolution, ge=3)
+        require_memory(simulation_bytes(args.resolution**2), f"--resolution {args.resolution} "
+                       f"({args.resolution}^2 control points)", "use a smaller --resolution")
+    if args.steps is not None:
+        number_option("--steps", args.steps, ge=1)
     resolutions = (args.resolution,) if args.resolution else bench.resolutions
     kwargs = {"steps": args.steps}
     if args.quadrature:
         kwargs["quadrature"] = args.quadrature
     if args.out and args.name != "compare":
-        raise SystemExit("--out applies to `garment bench compare` only")
+        raise InputError("--out applies to `garment bench compare` only")
     if args.case and args.name not in ("compare", "garment", "conform-garments"):
-        raise SystemExit("--case applies to `garment bench compare`, `garment` and `conform-garments` only")
+        raise InputError("--case applies to `garment bench compare`, `garment` and `conform-garments` only")
     kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
     if args.refine:
-        if args.refine < 0:
-            raise SystemExit("--refine: K must be >= 0")
+        number_option("--refine", args.refine, ge=0, le=4)
         if args.name != "garment":
-            raise SystemExit("--refine applies to `garment bench garment` only")
+            raise InputError("--refine applies to `garment bench garment` only")
         kwargs["refine"] = args.refine
     with progress(args.quiet or args.json) as bar:
         task = bar.add_task(args.name, total=None, status="")

@@ -14,15 +14,19 @@ from __future__ import annotations
 import json
 import os
 import re
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from sim.errors import InputError
+from sim.errors import InputError, printable
+from sim.files import atomic_write, output_file, output_folder
 
 from garment.io.garments import read_pattern
+from garment.scene import GarmentSpec
 
 from .console import err, print_table, progress
+from .options import number_option, scene_option
 
 COLUMNS = ("panel", "status", "control_net", "boundary_error_mm", "tolerance_mm", "jacobian_min_max",
            "min_corner_angle_deg", "area_error_pct", "reduced_area_error_pct", "seconds")
@@ -38,7 +42,7 @@ def parse_corners(specs: list[str]) -> dict:
         try:
             if ";" in rest:
                 corners = [tuple(float(x) for x in p.split(",")) for p in rest.split(";")]
-                if any(len(c) != 2 for c in corners):
+                if any(len(c) != 2 or not all(np.isfinite(c)) for c in corners):
                     raise ValueError
             else:
                 corners = [int(x) for x in rest.split(",")]
@@ -95,7 +99,7 @@ def with_split_rows(rows: list[dict], splits: dict) -> list[dict]:
 
 def run(args) -> int:
     from conform.mips import MipsOptions
-    from conform.pipeline import ConformOptions, conform_all
+    from conform.pipeline import ConformOptions, check_request, conform_all
     from garment.io.patchfile import save_patchset
 
     if args.knot_span is not None and args.control_points is not None:
@@ -104,19 +108,22 @@ def run(args) -> int:
     if args.control_points is not None:
         m = re.fullmatch(r"(\d+)x(\d+)", args.control_points)
         if not m or min(int(m[1]), int(m[2])) < 5:
-            raise InputError(f"--control-points {args.control_points!r}: expected NxM with N, M >= 5")
+            raise InputError(f"--control-points {printable(args.control_points, 40)!r}: expected NxM with N, M >= 5")
         counts = (int(m[1]), int(m[2]))
-    span = 1e-3 * (args.knot_span if args.knot_span is not None else 20.0)
-    if not span > 0:
-        raise InputError("--knot-span must be positive")
-    seam_span = None if args.seam_span is None else 1e-3 * args.seam_span
-    if seam_span is not None and not seam_span > 0:
-        raise InputError("--seam-span must be positive")
-    options = ConformOptions(knot_span=span, control_points=counts, refine=args.refine,
-                             tolerance=None if args.tolerance is None else 1e-3 * args.tolerance,
+    # Millimetres on the command line, checked as the scene's knot_span_mm; metres after.
+    span = scene_option("--knot-span", args.knot_span if args.knot_span is not None else 20.0, GarmentSpec,
+                        "knot_span_mm")
+    seam_span = None if args.seam_span is None else scene_option("--seam-span", args.seam_span, GarmentSpec,
+                                                                   "seam_span_mm")
+    tolerance = None if args.tolerance is None else 1e-3 * number_option("--tolerance", args.tolerance, gt=0)
+    number_option("--refine", args.refine, ge=0, le=6)
+    options = ConformOptions(knot_span=span, control_points=counts, refine=args.refine, tolerance=tolerance,
                              mips=MipsOptions(), split=args.split, seam_span=seam_span,
                              fold_pleats=args.fold_pleats)
     out_dir = Path(args.output)
+    output_folder(out_dir, "the output directory (-o)")
+    if args.preview is not None:
+        output_file(args.preview, (".png",), "the preview (--preview)")
     # Bad input leaves nothing behind: read it before creating the output directory.
     panels, seams = read_pattern(args.input, options.finest_span)
     if args.panels:
@@ -126,6 +133,7 @@ def run(args) -> int:
             raise InputError(f"{args.input}: no panel named {', '.join(sorted(missing))}")
         panels = [p for p in panels if p.name in wanted]
     corners = parse_corners(args.corners)
+    check_request(panels, options)  # memory, before the output folder and the work
     created = not out_dir.exists()
     try:  # fail before the work, not after it
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -149,7 +157,7 @@ def run(args) -> int:
         if created:
             out_dir.rmdir()
         for r in rows:
-            print(f"error: {r.get('error') or r['panel'] + ': could not be conformed'}", file=__import__("sys").stderr)
+            print(f"error: {printable(r.get('error') or r['panel'] + ': could not be conformed')}", file=sys.stderr)
         return 1
     try:
         out = save_patchset(out_dir / "patches.json", ps)
@@ -171,7 +179,7 @@ def run(args) -> int:
     for r in failed:
         # One plain line per failure: the message names the file and the panel.
         msg = r.get("error") or f"{r['panel']}: {r.get('inverted_points')} inverted quadrature points"
-        print(f"error: {msg}", file=__import__("sys").stderr)
+        print(f"error: {printable(msg)}", file=sys.stderr)
     if not quiet:
         err.print(f"wrote {out} ({len(ps.patches)} patches, {len(ps.seams)} seams)"
                   + (f", preview {args.preview}" if args.preview else ""))
@@ -256,8 +264,8 @@ def render_preview(ps, panels, path) -> None:
     pl.enable_parallel_projection()
     pl.reset_camera(bounds=None)
     pl.camera.zoom(1.05)
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    pl.screenshot(str(path))
+    with atomic_write(path, keep_suffix=True) as tmp:
+        pl.screenshot(str(tmp))
     pl.close()
 
 

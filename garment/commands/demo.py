@@ -3,10 +3,9 @@ simulate a short clip -> out/demo.rrd and out/demo.mp4 (assets/scenes/poncho_rum
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
-from .simulate import print_how_to_open, simulate
+from .simulate import override_frames, print_how_to_open, simulate
 
 SCENE = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "poncho_rumba.toml"
 
@@ -15,8 +14,7 @@ def run(args) -> int:
     from garment.scene import load_scene
     from viz.render import RenderOptions
 
-    scene = load_scene(SCENE)
-    scene = dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=args.frames))
+    scene = override_frames(load_scene(SCENE), args.frames)
     video = None if args.no_video else args.output.with_suffix(".mp4")
     simulate(scene, args.output, None, quiet=args.quiet, render_to=video,
              render_options=RenderOptions(size=(640, 640), fps=25.0, azimuth=-70.0, elevation=10.0))

@@ -16,14 +16,22 @@ import sys
 from pathlib import Path
 
 from sim.errors import InputError
+from sim.files import output_file
 
 from .console import err, print_table
-from .simulate import UP_VECTORS, add_render_options, render_frames
+from .simulate import add_render_options, check_render_target, render_frames, render_options
 
 
 def run(args) -> int:
     from viz.recording import load_recording
 
+    # Outputs and options first: nothing is read when they could not be written.
+    if args.export is not None:
+        output_file(args.export, (".obj", ".ply", ".usd", ".usda", ".usdc"), "the exported mesh (--export)")
+    options = None
+    if args.render is not None:
+        check_render_target(args.render)
+        options = render_options(args)
     rec = load_recording(args.recording)
     if args.json:
         print(json.dumps(rec.summary(), indent=1))
@@ -34,7 +42,7 @@ def run(args) -> int:
     elif args.frame is not None or args.mesh is not None:
         raise InputError("--frame and --mesh go with --export")
     if args.render is not None:
-        render_recording(rec, args)
+        render_recording(rec, args.render, options, args.quiet)
     if rec.damaged:
         # Plain print, like the CLI's other errors: one unwrapped line.
         print(f"error: {rec.path} is damaged ({rec.damaged}); recovered {len(rec.frames)} intact frames",
@@ -94,18 +102,12 @@ def export_usd(rec, args) -> None:
                   f"up axis {(args.up or 'z').upper()}")
 
 
-def render_recording(rec, args) -> None:
-    from viz.render import RenderOptions, output_kind, parse_size, recording_frames, recording_meshes
+def render_recording(rec, out: Path, options, quiet: bool) -> None:
+    from viz.render import recording_frames, recording_meshes
 
-    try:
-        output_kind(args.render)
-        options = RenderOptions(size=parse_size(args.render_size), fps=args.fps, orbit=args.orbit,
-                                up=UP_VECTORS.get(args.up))
-    except ValueError as e:
-        raise InputError(str(e)) from None
     if not rec.frames:
         raise InputError(f"{rec.path}: no intact frames to render")
-    render_frames(recording_meshes(rec), list(recording_frames(rec)), args.render, options, args.quiet)
+    render_frames(recording_meshes(rec), list(recording_frames(rec)), out, options, quiet)
 
 
 def print_summary(s: dict) -> None:

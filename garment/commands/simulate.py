@@ -18,9 +18,11 @@ import numpy as np
 from rich.markup import escape
 
 from sim.errors import InputError, Interrupted
-from garment.scene import Scene, load_scene
+from sim.files import output_file, output_folder, remove_partial_files
+from garment.scene import Scene, TimeSpec, load_scene
 
 from .console import err, progress
+from .options import number_option, scene_option
 
 DEFAULT_PORT = 9876  # rerun's default gRPC port
 
@@ -49,8 +51,7 @@ def simulate(scene: Scene, rrd: Path | None = None, mesh_dir: Path | None = None
     from sim.recovery import DEFAULT_SPLITS
     from viz.rerun_sink import RerunSink, check_viewer_reachable
 
-    if render_to is not None:
-        _check_render_target(render_to)
+    check_outputs(rrd, mesh_dir, checkpoint, render_to, quiet=quiet or connect is not None or serve is not None)
     if connect is not None:
         try:
             check_viewer_reachable(connect)
@@ -165,8 +166,9 @@ def default_checkpoint(rrd: Path | None, mesh_dir: Path | None) -> Path | None:
 
 class StopOnSignal:
     """SIGINT/SIGTERM while active: the first asks the run to stop after the current step
-    (`requested()`), a second exits at once (status 130; temporary files may remain, final
-    names are never half-written). Handlers are restored on exit."""
+    (`requested()`), a second exits at once (status 130): files being written are removed,
+    the recording keeps what was flushed (sim.files.remove_partial_files). Handlers are
+    restored on exit."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -182,6 +184,7 @@ class StopOnSignal:
         self.count += 1
         if self.count > 1:
             os.write(2, b"\ninterrupted again: exiting now\n")
+            remove_partial_files()
             os._exit(130)
         os.write(2, f"\n{signal.Signals(signum).name}: stopping after the current step "
                     "(send it again to quit at once)\n".encode())
@@ -214,13 +217,44 @@ def step_line(st) -> str:
     return line
 
 
-def _check_render_target(out: Path) -> None:
+def check_outputs(rrd: Path | None, mesh_dir: Path | None, checkpoint: Path | None, render_to: Path | None,
+                  quiet: bool) -> None:
+    """Refuse, before the run, outputs that could not be written at its end (a folder
+    named as the recording, a recording named .mp4, a place that cannot be written); say
+    so when the run writes nothing (unless quiet: -q, or streaming to a viewer)."""
+    if rrd is not None:
+        output_file(rrd, (".rrd",), "the recording (-o, [output] rrd)")
+    if mesh_dir is not None:
+        output_folder(mesh_dir, "the per-frame mesh folder (--mesh-dir, [output] mesh_dir)")
+    if checkpoint is not None:
+        output_file(checkpoint, (".npz",), "the checkpoint (--checkpoint)")
+    if render_to is not None:
+        check_render_target(render_to)
+    if rrd is None and mesh_dir is None and render_to is None and not quiet:
+        err.print("[yellow]warning:[/] this run writes no output (no -o, --mesh-dir or --render, and no "
+                  "\\[output] in the scene): only the statistics are printed")
+
+
+def check_render_target(out: Path) -> None:
+    """A video (.mp4, .gif) or a folder of PNG frames that can be written."""
     from viz.render import output_kind
 
     try:
-        output_kind(out)
+        kind = output_kind(out)
     except ValueError as e:
         raise InputError(str(e)) from None
+    if kind == "png":
+        output_folder(out, "the PNG frames (--render)")
+    else:
+        output_file(out, (f".{kind}",), "the video (--render)")
+
+
+def override_frames(scene: Scene, frames: int | None) -> Scene:
+    """The scene with [time] frames = `frames` (--frames), checked as the scene key is."""
+    if frames is None:
+        return scene
+    frames = scene_option("--frames", frames, TimeSpec, "frames")
+    return dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=frames))
 
 
 UP_VECTORS = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0)}  # --up
@@ -309,27 +343,16 @@ def print_logging_cost(log_seconds: float, sim_seconds: float) -> None:
 
 
 def run(args) -> int:
-    from viz.render import RenderOptions, parse_size
-
     scene = load_scene(args.scene)
     out = scene.output
     rrd = args.output if args.output is not None else out.rrd
     mesh_dir = args.mesh_dir if args.mesh_dir is not None else out.mesh_dir
-    if args.frames is not None:
-        scene = dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=args.frames))
-    options = None
-    if args.render is not None:
-        try:
-            size = parse_size(args.render_size)
-        except ValueError as e:
-            raise InputError(f"--render-size: {e}") from None
-        if not args.fps > 0:
-            raise InputError(f"--fps: must be > 0, got {args.fps}")
-        options = RenderOptions(size=size, fps=args.fps, orbit=args.orbit, up=UP_VECTORS.get(args.up))
-    if args.checkpoint_every < 0:
-        raise InputError(f"--checkpoint-every: must be >= 0, got {args.checkpoint_every}")
-    if not 0 <= args.max_splits <= 30:
-        raise InputError(f"--max-splits: must be between 0 and 30, got {args.max_splits}")
+    scene = override_frames(scene, args.frames)
+    options = render_options(args) if args.render is not None else None
+    number_option("--checkpoint-every", args.checkpoint_every, ge=0)
+    number_option("--max-splits", args.max_splits, ge=0, le=30)
+    if args.serve is not None:
+        number_option("--serve", args.serve, ge=0, le=65535)
     checkpoint = args.checkpoint if args.checkpoint is not None else default_checkpoint(rrd, mesh_dir)
     simulate(scene, rrd, mesh_dir, args.format or out.mesh_format, args.quiet, connect=args.connect,
              serve=args.serve, control_net=args.control_net, render_to=args.render, render_options=options,
@@ -359,6 +382,18 @@ def print_how_to_open(rrd: Path | None, video: Path | None = None, mesh_dir: Pat
         print(f"video:     {video.resolve()}")
     if mesh_dir is not None and mesh_dir.exists():
         print(f"meshes:    {mesh_dir.resolve()}")
+
+
+def render_options(args):
+    """RenderOptions of --render-size, --fps, --orbit and --up, checked."""
+    from viz.render import RenderOptions, parse_size
+
+    try:
+        size = parse_size(args.render_size)
+    except ValueError as e:
+        raise InputError(f"--render-size: {e}") from None
+    number_option("--fps", args.fps, gt=0, le=1000)
+    return RenderOptions(size=size, fps=args.fps, orbit=args.orbit, up=UP_VECTORS.get(args.up))
 
 
 def add_render_options(p) -> None:

@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from sim.errors import InputError
+from sim.files import read_npz
 
-# A body taller than this after scaling is almost certainly in centimetres or millimetres.
-_MAX_EXTENT_M = 5.0
+from ..units import LARGEST_M, scale_hint
+from .meshfile import read_mesh
+
 _TALL_M = 1.0  # bodies this long along Y (m) are checked for a Y-up export
 
 
@@ -71,7 +73,7 @@ def load_sequence(path: Path, scale: float = 1.0, up: str = "z", translate=(0.0,
     else:
         raise InputError(f"{path}: the sequence does not store its frame time; give `fps` in the scene")
     frames = to_scene_frame(frames.astype(float), scale, up, translate)
-    _check(path, frames, faces)
+    _check(path, frames, faces, scale)
     return BodySequence(np.ascontiguousarray(frames), faces, float(frame_dt))
 
 
@@ -79,19 +81,22 @@ def _read_npz(path: Path):
     if not zipfile.is_zipfile(path):
         raise InputError(f"{path}: not an NPZ archive (a body sequence needs arrays verts (T, V, 3), "
                          "faces (F, 3) and frame_dt)")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except Exception as e:  # numpy raises several types for non-NPZ files
-        raise InputError(f"{path}: cannot read body sequence ({e})") from None
-    missing = [k for k in ("verts", "faces") if k not in data.files]
+    data = read_npz(path, "body sequence")
+    missing = [k for k in ("verts", "faces") if k not in data]
     if missing:
         raise InputError(f"{path}: body sequence lacks {', '.join(missing)} (needs verts (T, V, 3) and faces (F, 3))")
     verts, faces = data["verts"], data["faces"]
-    if verts.ndim != 3 or verts.shape[2] != 3:
-        raise InputError(f"{path}: verts has shape {verts.shape}, expected (frames, vertices, 3)")
-    dt = float(data["frame_dt"]) if "frame_dt" in data.files else None
-    if dt is not None and not dt > 0:
-        raise InputError(f"{path}: frame_dt must be positive, got {dt}")
+    if verts.ndim != 3 or verts.shape[2] != 3 or verts.dtype.kind not in "fiu" or verts.size == 0:
+        raise InputError(f"{path}: verts has shape {verts.shape} ({verts.dtype}), expected (frames, vertices, 3) "
+                         "numbers")
+    dt = None
+    if "frame_dt" in data:
+        if data["frame_dt"].size != 1 or data["frame_dt"].dtype.kind not in "fiu":
+            raise InputError(f"{path}: frame_dt must be one number (s), got {data['frame_dt'].dtype} "
+                             f"{data['frame_dt'].shape}")
+        dt = float(data["frame_dt"].reshape(-1)[0])
+        if not (dt > 0 and np.isfinite(dt)):
+            raise InputError(f"{path}: frame_dt must be a positive number of seconds, got {dt}")
     return verts, _faces(path, faces), dt
 
 
@@ -100,23 +105,16 @@ def _natural_key(p: Path):
 
 
 def _read_obj_dir(path: Path):
-    import trimesh
-
     files = sorted(path.glob("*.obj"), key=_natural_key)
     if not files:
         raise InputError(f"{path}: directory holds no .obj frames")
     frames, faces = [], None
     for f in files:
-        try:
-            m = trimesh.load(f, force="mesh", process=False)
-        except Exception as e:
-            raise InputError(f"{f}: cannot read body frame ({e})") from None
-        F = np.asarray(m.faces, np.int32)
+        V, F = read_mesh(f, "body frame")
         if faces is None:
             faces = F
         elif F.shape != faces.shape or not np.array_equal(F, faces):
             raise InputError(f"{f}: frame topology differs from {files[0].name} (every frame needs the same faces)")
-        V = np.asarray(m.vertices, float)
         if frames and V.shape != frames[0].shape:
             raise InputError(f"{f}: {len(V)} vertices, but {files[0].name} has {len(frames[0])}")
         frames.append(V)
@@ -125,21 +123,30 @@ def _read_obj_dir(path: Path):
 
 def _faces(path: Path, faces: np.ndarray) -> np.ndarray:
     faces = np.asarray(faces)
-    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
-        raise InputError(f"{path}: faces has shape {faces.shape}, expected (triangles, 3)")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0 or not np.issubdtype(faces.dtype, np.integer):
+        raise InputError(f"{path}: faces has shape {faces.shape} ({faces.dtype}), expected (triangles, 3) integers")
+    if faces.min() < 0 or faces.max() >= 2**31:
+        raise InputError(f"{path}: faces index vertex {faces.min() if faces.min() < 0 else faces.max()}, "
+                         "out of range")
     return faces.astype(np.int32)
 
 
-def _check(path: Path, frames: np.ndarray, faces: np.ndarray) -> None:
+def _check(path: Path, frames: np.ndarray, faces: np.ndarray, scale: float) -> None:
     if not np.all(np.isfinite(frames)):
         t = int(np.flatnonzero(~np.isfinite(frames).all(axis=(1, 2)))[0])
         raise InputError(f"{path}: frame {t} has non-finite vertex positions")
     if faces.max() >= frames.shape[1] or faces.min() < 0:
         raise InputError(f"{path}: faces index vertex {faces.max()} but frames have {frames.shape[1]} vertices")
-    extent = float(np.ptp(frames[0], axis=0).max())
-    if extent > _MAX_EXTENT_M:
-        raise InputError(f"{path}: the body is {extent:.3g} m across after scaling; the file is probably "
-                         f"not in metres (set `scale`, e.g. 0.01 for centimetres)")
+    check_extent(path, frames[0], scale, "the body")
+
+
+def check_extent(path: Path, points: np.ndarray, scale: float, what: str) -> None:
+    """InputError when `points` (m, after `scale`) span more than a person or garment could:
+    the file is in other units; says which and the scale to set."""
+    extent = float(np.ptp(points, axis=0).max())
+    if extent > LARGEST_M:
+        raise InputError(f"{path}: {what} is {extent:.3g} m across after scaling; the file is probably "
+                         f"not in metres ({scale_hint(extent, scale)})")
 
 
 def check_up_axis(path: Path, verts: np.ndarray) -> None:

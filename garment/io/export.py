@@ -21,6 +21,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from sim.files import atomic_write
 from sim.sinks import Frame, MeshTopology
 
 FORMATS = ("npz", "obj", "ply")
@@ -76,9 +77,7 @@ class MeshExportSink:
         """Write one file per piece: positions (V, 3) m as float64 plus faces and uv."""
         for name, x in frame.positions.items():
             m = self._meshes[name]
-            final = self.path(name, frame.index)
-            tmp = final.with_name(f".{final.name}.{os.getpid()}.tmp")
-            try:
+            with atomic_write(self.path(name, frame.index)) as tmp:
                 _WRITERS[self.fmt](
                     tmp,
                     np.asarray(x, dtype=np.float64),
@@ -87,9 +86,6 @@ class MeshExportSink:
                     float(frame.time),
                     int(frame.index),
                 )
-                os.replace(tmp, final)
-            finally:
-                tmp.unlink(missing_ok=True)
 
     def close(self) -> None:
         """Nothing is buffered: every frame is complete on disk once `write` returns."""

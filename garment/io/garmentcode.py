@@ -21,45 +21,58 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.errors import InputError
+from sim.budget import require_memory
+from sim.errors import InputError, printable
+from sim.files import input_file
 from sim.patches import Panel
 from sim.seams.spec import PanelSeam
+
+from ..units import LARGEST_M
 
 _GL_T, _GL_W = np.polynomial.legendre.leggauss(8)
 
 
 def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[PanelSeam]]:
     """Outline panels (metres) and seams of a GarmentCode pattern file."""
-    path = Path(path)
+    path = input_file(path)
     try:
-        spec = json.loads(path.read_text())
+        spec = json.loads(path.read_bytes().decode("utf-8"))
         pattern = spec["pattern"]
         panels_spec = pattern["panels"]
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except (json.JSONDecodeError, KeyError, TypeError) as e:
-        raise InputError(f"{path}: not a GarmentCode pattern ({e})") from None
-    props = spec.get("properties", {})
-    scale = 1.0 / float(props.get("units_in_meter", 100))
+        props = spec.get("properties", {})
+        scale = 1.0 / float(props.get("units_in_meter", 100))
+        order = pattern.get("panel_order") or list(panels_spec)
+        stitches = pattern.get("stitches", [])
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, AttributeError, ValueError,
+            RecursionError) as e:
+        raise InputError(f"{path}: not a GarmentCode pattern ({printable(e, 200)})") from None
+    for key, value in (("panels", panels_spec), ("panel_order", order), ("stitches", stitches)):
+        if not isinstance(value, dict if key == "panels" else list):
+            raise InputError(f"{path}: pattern.{key} must be {'an object' if key == 'panels' else 'a list'}")
+    if not (np.isfinite(scale) and scale > 0):
+        raise InputError(f"{path}: properties.units_in_meter must be a positive number, got "
+                         f"{printable(props.get('units_in_meter'), 40)}")
     if props.get("curvature_coords", "relative") != "relative":
         raise InputError(f"{path}: properties.curvature_coords: only 'relative' is supported")
-    order = pattern.get("panel_order") or list(panels_spec)
     panels, curves = [], {}
+    samples = 0
     for name in order:
-        where = f"{path}: panel {name}"
+        where = f"{path}: panel {printable(name, 80)}"
         try:
-            panel, edge_curves = _panel(name, panels_spec[name], scale, spacing, where, str(path))
-        except (KeyError, TypeError, ValueError, IndexError) as e:
-            raise InputError(f"{where}: malformed ({e})") from None
+            panel, edge_curves, samples = _panel(name, panels_spec[name], scale, spacing, where, str(path), samples)
+        except InputError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as e:
+            raise InputError(f"{where}: malformed ({printable(e, 200)})") from None
         panels.append(panel)
         curves[name] = edge_curves
     seams = []
-    for s, pair in enumerate(pattern.get("stitches", [])):
+    for s, pair in enumerate(stitches):
         try:
             (a, b) = pair
             ca, cb = curves[a["panel"]][int(a["edge"])], curves[b["panel"]][int(b["edge"])]
-        except (KeyError, IndexError, TypeError, ValueError) as e:
-            raise InputError(f"{path}: pattern.stitches[{s}]: unknown panel or edge ({e})") from None
+        except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as e:
+            raise InputError(f"{path}: pattern.stitches[{s}]: unknown panel or edge ({printable(e, 200)})") from None
         k = max(int(np.ceil(max(ca.length, cb.length) / 0.01)), 2) + 1  # about every cm
         t = np.linspace(0.0, 1.0, k)
         seams.append(PanelSeam(
@@ -67,6 +80,22 @@ def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[Pa
             points_a=ca.at_length_fraction(t), points_b=cb.at_length_fraction(1.0 - t),
         ))
     return panels, seams
+
+
+# Memory per outline sample while a panel is read (its point, its segment's bulge from 33
+# curve points, indices): a knot span typed in metres where millimetres are meant asks
+# for hundreds of thousands of samples per panel.
+SAMPLE_BYTES = 1000
+
+
+def _numbers(value, shape: tuple[int, ...], what: str, where: str) -> np.ndarray:
+    """`value` as a finite float array of `shape` (-1: any length)."""
+    a = np.asarray(value, float)
+    if a.ndim != len(shape) or any(n not in (-1, m) for n, m in zip(shape, a.shape)):
+        raise InputError(f"{where}: {what} must have shape {shape}, got {a.shape}".replace("-1", "N"))
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{where}: {what} holds a non-finite number (NaN or inf)")
+    return a
 
 
 class _Curve:
@@ -127,18 +156,23 @@ def _rel_to_abs(a, b, rel):
     return a + rel[0] * e + rel[1] * np.array([-e[1], e[0]])
 
 
-def _edge_curve(a, b, curvature, where: str) -> _Curve:
+def _edge_curve(a, b, curvature, where: str, scale: float) -> _Curve:
+    """The edge from a to b (m); a circle's radius is in pattern units, times `scale`."""
     if not curvature:
         return _Curve("line", np.array([a, b]))
     if isinstance(curvature, (list, tuple)):  # old format: one quadratic control point
         curvature = {"type": "quadratic", "params": [curvature]}
     kind, params = curvature["type"], curvature["params"]
     if kind == "quadratic":
-        return _Curve(kind, np.array([a, _rel_to_abs(a, b, params[0]), b]))
+        return _Curve(kind, np.array([a, _rel_to_abs(a, b, _numbers(params[0], (2,), "curvature", where)), b]))
     if kind == "cubic":
-        return _Curve(kind, np.array([a, _rel_to_abs(a, b, params[0]), _rel_to_abs(a, b, params[1]), b]))
+        c0, c1 = (_numbers(p, (2,), "curvature", where) for p in params[:2])
+        return _Curve(kind, np.array([a, _rel_to_abs(a, b, c0), _rel_to_abs(a, b, c1), b]))
     if kind == "circle":
-        radius, large, right = float(params[0]), bool(params[1]), bool(params[2])
+        radius, large, right = float(_numbers(params[0], (), "circle radius", where)) * scale, bool(params[1]), \
+            bool(params[2])
+        if not radius > 0 or np.allclose(a, b):
+            raise InputError(f"{where}: a circle edge needs a positive radius and two distinct ends")
         L = float(np.linalg.norm(b - a))
         h = np.sqrt(max(radius**2 - L**2 / 4.0, 0.0))
         cy = (radius + h if large else radius - h) / L * (-1.0 if right else 1.0)
@@ -171,19 +205,37 @@ def euler_xyz(degrees) -> np.ndarray:
     return Rz @ Ry @ Rx
 
 
-def _panel(name, spec, scale, spacing, where, source) -> tuple[Panel, list[_Curve]]:
-    V = np.asarray(spec["vertices"], float) * scale
+def _panel(name, spec, scale, spacing, where, source, samples: int) -> tuple[Panel, list[_Curve], int]:
+    """The panel, its edge curves and the outline samples read so far (with its own)."""
+    V = _numbers(spec["vertices"], (-1, 2), "vertices", where) * scale
     edges = spec["edges"]
     if len(edges) < 2:
         raise InputError(f"{where}: needs at least 2 edges, got {len(edges)}")
+    ends = []
     for k, e in enumerate(edges):
-        nxt = edges[(k + 1) % len(edges)]
-        if e["endpoints"][1] != nxt["endpoints"][0]:
+        i, j = e["endpoints"]
+        if not all(isinstance(x, int) and 0 <= x < len(V) for x in (i, j)):
+            raise InputError(f"{where}: edges[{k}].endpoints {printable([i, j], 60)} must be vertex indices "
+                             f"0 to {len(V) - 1}")
+        ends.append((i, j))
+    for k, (i, j) in enumerate(ends):
+        if j != ends[(k + 1) % len(ends)][0]:
             raise InputError(f"{where}: edges {k} and {(k + 1) % len(edges)} do not join: the outline is not a loop")
-    curves = [_edge_curve(V[e["endpoints"][0]], V[e["endpoints"][1]], e.get("curvature"), where) for e in edges]
+    with np.errstate(all="ignore"):  # a degenerate curve is reported below, not warned about
+        curves = [_edge_curve(V[i], V[j], e.get("curvature"), where, scale) for (i, j), e in zip(ends, edges)]
+    lengths = np.array([c.length for c in curves])
+    if not np.all(np.isfinite(lengths)):
+        raise InputError(f"{where}: edge {int(np.flatnonzero(~np.isfinite(lengths))[0])} is degenerate")
+    extent = float(np.ptp(np.concatenate([c.at(np.linspace(0.0, 1.0, 33)) for c in curves]), axis=0).max())
+    if extent > LARGEST_M:
+        raise InputError(f"{where}: the panel is {extent:.3g} m across; check properties.units_in_meter "
+                         f"({1.0 / scale:g}: the vertices are in 1/{1.0 / scale:g} m)")
+    counts = [max(int(np.ceil(c.length / spacing)), 1 if c.kind == "line" else 4) for c in curves]
+    samples += sum(counts)
+    require_memory(SAMPLE_BYTES * samples, f"{where}: sampling the outlines every {spacing * 1e3:.3g} mm "
+                   f"({samples} points so far)", "raise the knot span (outlines are sampled at a sixth of it)")
     pts, seg_edge, hints, bulge = [], [], [], []
-    for k, c in enumerate(curves):
-        count = max(int(np.ceil(c.length / spacing)), 1 if c.kind == "line" else 4)
+    for k, (c, count) in enumerate(zip(curves, counts)):
         hints.append(sum(len(p) for p in pts))
         pts.append(c.at_length_fraction(np.arange(count) / count))
         seg_edge += [k] * count
@@ -199,8 +251,8 @@ def _panel(name, spec, scale, spacing, where, source) -> tuple[Panel, list[_Curv
         hints = (rest.shape[0] - hints) % rest.shape[0]
         area = -area
     T = np.eye(4)
-    T[:3, :3] = euler_xyz(spec.get("rotation", [0, 0, 0]))
-    T[:3, 3] = np.asarray(spec.get("translation", [0, 0, 0]), float) * scale
+    T[:3, :3] = euler_xyz(_numbers(spec.get("rotation", [0, 0, 0]), (3,), "rotation", where))
+    T[:3, 3] = _numbers(spec.get("translation", [0, 0, 0]), (3,), "translation", where) * scale
     panel = Panel(name=name, source=source, rest=rest, transform=T, corner_hints=np.sort(hints),
                   segment_edges=seg_edge, area=float(area), segment_bulge=bulge)
-    return panel, curves
+    return panel, curves, samples

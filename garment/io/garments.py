@@ -76,8 +76,8 @@ def place_panels(panels, placement) -> None:
 
 def _is_patch_file(path) -> bool:
     try:
-        with open(path) as f:
-            head = f.read(4096)
+        with open(path, "rb") as f:
+            head = f.read(4096).decode("utf-8", "replace")  # binary garbage: the reader says what it is
     except OSError as e:
         raise InputError(f"{path}: {e.strerror}") from None
     return f'"{FORMAT}"' in head or '"format"' in head and FORMAT in head

@@ -7,9 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.errors import InputError
-
-from .bodies import BodySequence, check_up_axis, load_sequence, to_scene_frame
+from .bodies import BodySequence, check_extent, check_up_axis, load_sequence, to_scene_frame
+from .meshfile import read_mesh
 
 
 @dataclass
@@ -98,15 +97,10 @@ def _geometry(spec) -> ObstacleGeometry:
         if spec.up is None:
             check_up_axis(spec.animation, seq.frames[0])
         return ObstacleGeometry(spec.name, seq.frames[0].copy(), seq.faces, seq)
-    try:
-        m = trimesh.load(spec.mesh, force="mesh", process=False)
-    except Exception as e:  # trimesh raises many types for unreadable files
-        raise InputError(f"{spec.mesh}: cannot read obstacle mesh ({e})") from None
-    V = np.asarray(m.vertices, float)
-    F = np.asarray(m.faces, np.int32)
-    if V.size == 0 or F.size == 0 or not np.all(np.isfinite(V)):
-        raise InputError(f"{spec.mesh}: obstacle mesh has no triangles or non-finite vertices")
-    return ObstacleGeometry(spec.name, to_scene_frame(V, spec.scale, spec.up or "z", spec.translate), F)
+    V, F = read_mesh(spec.mesh, "obstacle mesh")
+    V = to_scene_frame(V, spec.scale, spec.up or "z", spec.translate)
+    check_extent(spec.mesh, V, spec.scale, "the obstacle")
+    return ObstacleGeometry(spec.name, V, F.astype(np.int32))
 
 
 def plane_quad(point, normal, size: float) -> tuple[np.ndarray, np.ndarray]:

@@ -17,23 +17,39 @@ that plane's 2D coordinates and the 3D placement the vertices as given.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from sim.errors import InputError
+from sim.files import input_file
 from sim.patches import Panel
 from sim.seams.spec import PanelSeam
+
+from ..units import LARGEST_M, other_unit
+from .meshfile import read_mesh
 
 
 def read_panels(path) -> tuple[list[Panel], list[PanelSeam]]:
     """Panels and seams of a mesh file; raises InputError naming the file."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    if path.suffix.lower() == ".obj":
-        return _read_obj(path)
-    return _read_other(path), []
+    path = input_file(path)
+    panels, seams = _read_obj(path) if path.suffix.lower() == ".obj" else (_read_other(path), [])
+    for p in panels:
+        check_panel_size(p)
+    return panels, seams
+
+
+def check_panel_size(panel: Panel) -> None:
+    """A panel (layout or placement) wider than a person could wear was not written in
+    metres; conforming it at a knot span meant in metres would take minutes."""
+    for what, points in (("layout", panel.rest), ("3D placement", panel.world)):
+        extent = float(np.ptp(points, axis=0).max()) if points is not None and len(points) else 0.0
+        if extent > LARGEST_M:
+            guess = other_unit(extent, "m", None, LARGEST_M)
+            hint = f"looks like {guess[0]}: convert it to metres (x {guess[1]:g})" if guess else "use metres"
+            raise InputError(f"{panel.source}: panel {panel.name}: the {what} is {extent:.3g} m across; "
+                             f"panel files are in metres ({hint})")
 
 
 # --------------------------------------------------------------------------------- OBJ
@@ -43,7 +59,25 @@ def _index(token: str, count: int, path: Path, lineno: int) -> int:
     i = int(token)
     if i == 0:
         raise InputError(f"{path}:{lineno}: OBJ indices start at 1")
+    if abs(i) > 2**40:
+        raise InputError(f"{path}:{lineno}: index {token[:24]} is out of range")
     return i - 1 if i > 0 else count + i
+
+
+def _numbers(tokens: list[str], count: int, path: Path, lineno: int) -> tuple[float, ...]:
+    """The first `count` tokens as finite numbers (ValueError: too few or not numbers)."""
+    if len(tokens) < count:
+        raise ValueError
+    values = tuple(float(t) for t in tokens[:count])
+    if not all(math.isfinite(v) for v in values):
+        raise InputError(f"{path}:{lineno}: non-finite number (NaN or inf) in {_excerpt(' '.join(tokens[:count]))}")
+    return values
+
+
+def _excerpt(line: str, limit: int = 80) -> str:
+    """A line of the file for a message: quoted, escaped, at most `limit` characters."""
+    line = line.strip()
+    return repr(line if len(line) <= limit else line[:limit] + "...")
 
 
 def _read_obj(path: Path) -> tuple[list[Panel], list[PanelSeam]]:
@@ -51,7 +85,7 @@ def _read_obj(path: Path) -> tuple[list[Panel], list[PanelSeam]]:
     groups: list[tuple[str, list]] = []  # (name, [(v index, vt index or -1) per face corner])
     stitches: list[tuple[int, list]] = []  # (line number, [(i, j, k, w)])
     current = None
-    with open(path, "r", errors="replace") as f:
+    with open(path, "r", errors="backslashreplace") as f:
         for lineno, line in enumerate(f, 1):
             t = line.split()
             if not t or t[0].startswith("#"):
@@ -59,9 +93,9 @@ def _read_obj(path: Path) -> tuple[list[Panel], list[PanelSeam]]:
             try:
                 key = t[0]
                 if key == "v":
-                    v.append((float(t[1]), float(t[2]), float(t[3])))
+                    v.append(_numbers(t[1:], 3, path, lineno))
                 elif key == "vt":
-                    vt.append((float(t[1]), float(t[2])))
+                    vt.append(_numbers(t[1:], 2, path, lineno))
                 elif key in ("g", "o"):
                     current = (" ".join(t[1:]) or f"panel{len(groups)}", [])
                     groups.append(current)
@@ -84,9 +118,14 @@ def _read_obj(path: Path) -> tuple[list[Panel], list[PanelSeam]]:
                 elif key == "stitch":
                     if not stitches:
                         raise InputError(f"{path}:{lineno}: 'stitch' before any 'seam' line")
-                    stitches[-1][1].append((int(t[1]), int(t[2]), int(t[3]), float(t[4])))
-            except (ValueError, IndexError) as e:
-                raise InputError(f"{path}:{lineno}: cannot read {line.strip()!r} ({e})") from None
+                    w = _numbers(t[4:], 1, path, lineno)[0]
+                    if not 0.0 <= w <= 1.0:
+                        raise InputError(f"{path}:{lineno}: stitch weight {w:g} is not in [0, 1]")
+                    stitches[-1][1].append((int(t[1]), int(t[2]), int(t[3]), w))
+            except InputError:
+                raise
+            except (ValueError, IndexError, OverflowError):
+                raise InputError(f"{path}:{lineno}: cannot read {_excerpt(line)}") from None
     V = np.asarray(v, float).reshape(-1, 3)
     VT = np.asarray(vt, float).reshape(-1, 2)
     groups = [g for g in groups if g[1]]
@@ -125,7 +164,8 @@ def _obj_panel(name: str, corners: np.ndarray, V, VT, path: Path) -> Panel:
     """corners (F, 3, 2): (v, vt) per face corner."""
     use_vt = VT.shape[0] > 0 and np.all(corners[..., 1] >= 0)
     key = corners[..., 1] if use_vt else corners[..., 0]
-    bad = (key < 0) | (key >= (VT.shape[0] if use_vt else V.shape[0])) | (corners[..., 0] >= V.shape[0])
+    bad = (key < 0) | (key >= (VT.shape[0] if use_vt else V.shape[0])) | (corners[..., 0] < 0) | (
+        corners[..., 0] >= V.shape[0])
     if np.any(bad):
         raise InputError(f"{path}: panel {name}: a face refers to a vertex that does not exist")
     ids, faces = np.unique(key.ravel(), return_inverse=True)
@@ -176,26 +216,7 @@ def _obj_seams(stitches, panels: list[Panel], nv: int, path: Path) -> list[Panel
 
 
 def _read_other(path: Path) -> list[Panel]:
-    vertices = faces = None
-    try:
-        import trimesh
-
-        mesh = trimesh.load(path, process=False, force="mesh")
-        vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
-    except Exception:  # trimesh does not know the format: try meshio
-        try:
-            import meshio
-
-            m = meshio.read(path)
-            tris = [c.data for c in m.cells if c.type == "triangle"]
-            vertices = np.asarray(m.points, float)
-            faces = np.concatenate(tris).astype(np.int64) if tris else np.zeros((0, 3), np.int64)
-        except Exception as e:
-            raise InputError(f"{path}: cannot read as a triangle mesh ({e})") from None
-    if faces is None or faces.shape[0] == 0:
-        raise InputError(f"{path}: no triangles")
-    if vertices.shape[1] == 2:
-        vertices = np.concatenate([vertices, np.zeros((vertices.shape[0], 1))], axis=1)
+    vertices, faces = read_mesh(path)
     panels = []
     for k, comp in enumerate(_components(faces)):
         ids, local = np.unique(faces[comp].ravel(), return_inverse=True)
@@ -208,6 +229,8 @@ def _read_other(path: Path) -> list[Panel]:
 
 def _flatten(points: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
     """2D coordinates of points (P, 3) that lie in one plane, and the points themselves."""
+    if points.shape[0] < 3:
+        raise InputError(f"{where}: only {points.shape[0]} vertices; a panel needs at least 3")
     c = points.mean(axis=0)
     _, s, vh = np.linalg.svd(points - c, full_matrices=False)
     diam = float(np.ptp(points, axis=0).max()) or 1.0

@@ -51,12 +51,12 @@ u0/u1, from t0 to t1 (t0 > t1 runs backwards).
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
-from sim.errors import InputError
+from sim.errors import InputError, printable
+from sim.files import atomic_write, input_file
 from sim.patches import Patch, PatchSet
 from sim.seams.spec import BoundaryInterval, PatchSeam
 
@@ -116,59 +116,91 @@ def to_dict(ps: PatchSet) -> dict:
 def save_patchset(path, ps: PatchSet) -> Path:
     """Write the patch file atomically; returns its path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(to_dict(ps), separators=(",", ":")))
-    os.replace(tmp, path)
+    text = json.dumps(to_dict(ps), separators=(",", ":"), allow_nan=False)
+    with atomic_write(path) as tmp:
+        tmp.write_text(text)
     return path
 
 
 def load_patchset(path) -> PatchSet:
-    """Read a patch file (InputError naming the file and the bad entry)."""
-    path = Path(path)
+    """Read a patch file (InputError naming the file and the bad entry): finite numbers,
+    shapes that match the control-point counts, seams between patches of the file."""
+    path = input_file(path, "patch file")
     try:
-        doc = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except json.JSONDecodeError as e:
-        raise InputError(f"{path}: not JSON ({e})") from None
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
+        raise InputError(f"{path}: not JSON ({printable(e, 200)})") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise InputError(f"{path}: not a patch file (format must be {FORMAT!r})")
     if doc.get("version") != VERSION:
-        raise InputError(f"{path}: version {doc.get('version')!r} is not supported (expected {VERSION})")
+        raise InputError(f"{path}: version {printable(repr(doc.get('version')), 40)} is not supported "
+                         f"(expected {VERSION})")
     patches, prov, quality = [], {}, {}
-    for k, d in enumerate(doc.get("patches", [])):
+    for k, d in enumerate(_entries(doc, "patches", path)):
         where = f"{path}: patches[{k}]"
         try:
             n, m = (int(x) for x in d["control_points"])
-            rest = np.asarray(d["rest"], float)
-            world = np.asarray(d["world"], float)
-            if rest.shape != (n, m, 2) or world.shape != (n, m, 3):
-                raise ValueError(f"rest {rest.shape} / world {world.shape} do not match control_points {n} x {m}")
+            if not (3 <= n <= MAX_COUNT and 3 <= m <= MAX_COUNT):
+                raise ValueError(f"control_points {n} x {m}: each must be 3 to {MAX_COUNT}")
+            rest = _finite(d["rest"], (n, m, 2), "rest")
+            world = _finite(d["world"], (n, m, 3), "world")
             if d.get("knots_u", _knots(n)) != _knots(n) or d.get("knots_v", _knots(m)) != _knots(m):
                 raise ValueError("only open uniform integer knot vectors are supported")
             patches.append(Patch(str(d["name"]), rest, world))
-        except (KeyError, TypeError, ValueError) as e:
-            raise InputError(f"{where}: {e}") from None
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as e:
+            raise InputError(f"{where}: {printable(e, 300)}") from None
         prov[patches[-1].name] = d.get("provenance", {})
         quality[patches[-1].name] = d.get("quality", {})
-    names = {p.name for p in patches}
+    names = [p.name for p in patches]
+    if len(set(names)) != len(names):
+        raise InputError(f"{path}: patch names repeat: {printable(sorted({n for n in names if names.count(n) > 1}))}")
+    shapes = {p.name: p.shape for p in patches}
     seams = []
-    for k, d in enumerate(doc.get("seams", [])):
+    for k, d in enumerate(_entries(doc, "seams", path)):
         try:
             ends = []
             for key in ("a", "b"):
                 e = d[key]
-                if e["patch"] not in names:
-                    raise ValueError(f"{key}.patch {e['patch']!r} is not a patch in this file")
-                uv = np.asarray(e["uv"], float).reshape(-1, 2)
+                if e["patch"] not in shapes:
+                    raise ValueError(f"{key}.patch {printable(repr(e['patch']), 80)} is not a patch in this file")
+                uv = _finite(e["uv"], (-1, 2), f"{key}.uv")
+                n, m = shapes[e["patch"]]
+                top = np.array([n - 2, m - 2]) + UV_TOL
+                if uv.size and ((uv.min(axis=0) < -UV_TOL).any() or (uv.max(axis=0) > top).any()):
+                    raise ValueError(f"{key}.uv lies outside the parameter domain [0, {n - 2}] x [0, {m - 2}]")
                 ivs = [BoundaryInterval(str(i["side"]), float(i["t0"]), float(i["t1"])) for i in e["intervals"]]
                 ends.append((e["patch"], uv, ivs))
             if ends[0][1].shape != ends[1][1].shape:
                 raise ValueError("a.uv and b.uv must have the same number of samples")
             seams.append(PatchSeam(str(d["name"]), ends[0][0], ends[1][0], ends[0][1], ends[1][1],
                                    ends[0][2], ends[1][2], tuple(str(a) for a in d.get("after", ()))))
-        except (KeyError, TypeError, ValueError) as e:
-            raise InputError(f"{path}: seams[{k}]: {e}") from None
-    return PatchSet(patches, seams, prov, quality, dict(doc.get("failures", {})), str(doc.get("source", "")),
-                    dict(doc.get("splits", {})))
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as e:
+            raise InputError(f"{path}: seams[{k}]: {printable(e, 300)}") from None
+    try:
+        extras = dict(doc.get("failures", {})), str(doc.get("source", "")), dict(doc.get("splits", {}))
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{path}: failures, source or splits: {printable(e, 200)}") from None
+    return PatchSet(patches, seams, prov, quality, *extras)
+
+
+# Control points along one side of a patch at most: a 2 m panel at 0.5 mm knot spans.
+MAX_COUNT = 4000
+UV_TOL = 1e-6  # seam parameters may overshoot the domain by round-off
+
+
+def _entries(doc: dict, key: str, path: Path) -> list[dict]:
+    value = doc.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(d, dict) for d in value):
+        raise InputError(f"{path}: {key} must be a list of objects")
+    return value
+
+
+def _finite(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """`value` as a float array of `shape` (-1: any) with finite entries, or ValueError."""
+    a = np.asarray(value, float)  # null (a NaN written by an old version) becomes nan
+    if a.ndim != len(shape) or any(s not in (-1, n) for s, n in zip(shape, a.shape)):
+        want = " x ".join("N" if s < 0 else str(s) for s in shape)
+        raise ValueError(f"{what} has shape {a.shape}, expected {want}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{what} holds non-finite numbers (NaN, inf or null)")
+    return a

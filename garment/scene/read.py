@@ -26,11 +26,17 @@ from garment.scene.table import SceneError, Table
 
 # Largest |cos| of the angle between axis_u and axis_v.
 ORTHOGONALITY_TOL = 1e-6
+MAX_SCENE_BYTES = 16_000_000  # a larger file is something else given by mistake
 
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file."""
+    if Path(path).is_dir():
+        raise SceneError(path, "<file>", "is a folder, not a scene file")
     try:
+        if Path(path).stat().st_size > MAX_SCENE_BYTES:
+            size = Path(path).stat().st_size / 1e6
+            raise SceneError(path, "<file>", f"{size:.0f} MB is not a scene file (TOML of a few kB)")
         text = Path(path).read_bytes().decode("utf-8")
     except FileNotFoundError:
         raise SceneError(path, "<file>", "no such file") from None

@@ -120,6 +120,8 @@ def _allowed(k: Key) -> str:
         parts.append(" | ".join(toml(c) for c in k.choices))
     if k.bounds:
         parts.append(rule(**k.bounds))
+    if k.plausible is not None:
+        parts.append(f"plausible {rule(ge=k.plausible[0], le=k.plausible[1])}")
     if k.normalise:
         parts.append("non-zero; normalised")
     if k.exists:

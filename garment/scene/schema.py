@@ -38,6 +38,9 @@ class Key:
     lt: float | None = None
     le: float | None = None
     allow_inf: bool = False
+    # (low, high) a sensible value lies in, in the key's unit (None: open); outside it the
+    # value is refused as written in other units, with the likely ones (garment/units.py).
+    plausible: tuple[float | None, float | None] | None = None
     choices: tuple[str, ...] = ()
     also: tuple[str, ...] = ()  # strings accepted in place of the value (kappa = "adaptive")
     required: bool = False

@@ -35,7 +35,7 @@ declare(
     E_sh=Key("shear modulus", unit="Pa", ge=0),
     E_bd=Key("bending modulus", unit="Pa", ge=0),
     nu=Key("Poisson ratio", gt=-1, lt=0.5),
-    h=Key("thickness", unit="m", gt=0),
+    h=Key("thickness", unit="m", gt=0, plausible=(None, 0.1)),
     rho=Key("density", unit="kg/m^3", gt=0),
     membrane=Key('membrane energy; "none": bending only', choices=MEMBRANE_MODELS),
     quadrature=Key(
@@ -62,7 +62,8 @@ class ClothSpec:
     """A flat rectangular cloth; see :meth:`patch`."""
 
     name: str = key(doc="unique name", default_text='"cloth0", "cloth1", ... by position')
-    size: tuple[float, float] = key(doc="width along axis_u and height along axis_v", unit="m", gt=0, required=True)
+    size: tuple[float, float] = key(doc="width along axis_u and height along axis_v", unit="m", gt=0, required=True,
+                                    plausible=(None, 20.0))
     control_points: tuple[int, int] = key(doc="control net n x m", ge=1, required=True)
     origin: tuple[float, float, float] = key((0.0, 0.0, 0.0), doc="world position of the (u, v) = (0, 0) corner",
                                              unit="m")
@@ -201,7 +202,7 @@ class ObstacleSpec:
     translate: tuple[float, float, float] = key((0.0, 0.0, 0.0), doc="offset applied after scaling and turning",
                                                 unit="m", kinds=FILE_KINDS)
     center: tuple[float, float, float] = key((0.0, 0.0, 0.0), doc="centre", unit="m", table="sphere")
-    radius: float = key(0.0, doc="radius", unit="m", gt=0, required=True, table="sphere")
+    radius: float = key(0.0, doc="radius", unit="m", gt=0, required=True, table="sphere", plausible=(None, 20.0))
     subdivisions: int = key(3, doc="icosphere subdivisions", ge=0, le=6, table="sphere")
     point: tuple[float, float, float] = key((0.0, 0.0, 0.0), doc="a point on the plane", unit="m", table="plane")
     normal: tuple[float, float, float] = key((0.0, 0.0, 1.0), doc="normal (normalised)", normalise=True,
@@ -226,7 +227,7 @@ class ContactSpec:
 
     enabled: bool = key(False, doc="contact on or off",
                         default_text="true when the scene has a [contact] table or an [[obstacle]]")
-    dhat: float = key(1e-3, doc="barrier activation distance", unit="m", gt=0)
+    dhat: float = key(1e-3, doc="barrier activation distance", unit="m", gt=0, plausible=(None, 0.1))
     kappa: float = key(1e5, doc='barrier stiffness (area-weighted); "adaptive" chooses it per step as IPC does '
                                 "(sim/contact/stiffness.py)", unit="Pa", gt=0, also=("adaptive",))
     adaptive_kappa: bool = False  # kappa = "adaptive"
@@ -269,9 +270,11 @@ class GarmentSpec:
     name: str = key(doc="garment name", default_text='"garment0", "garment1", ... by position')
     source: Path = key(doc="a patch file (`garment conform` output), or a panel mesh or GarmentCode pattern "
                            "conformed on the fly", exists="file", required=True)
-    knot_span: float = key(0.03, doc="knot span a panel source is conformed at", unit="mm", gt=0)
+    knot_span: float = key(0.03, doc="knot span a panel source is conformed at", unit="mm", gt=0,
+                          plausible=(0.5, 1000.0))
     seam_span: float | None = key(None, doc="knot span graded towards at short seams (conform/grading.py)",
-                                  unit="mm", gt=0, default_text="none: knot_span_mm throughout")
+                                  unit="mm", gt=0, plausible=(0.1, 1000.0),
+                                  default_text="none: knot_span_mm throughout")
     fold_pleats: bool = key(False, doc="tucks and knife pleats start folded (conform/pleats.py)")
     pleat_wait: bool = key(False, doc="seams sewn onto a folded pleat's face pull only once its tucks have nearly "
                                       "closed ([sewing] pleat_wait_gap_mm, pleat_wait_end)")

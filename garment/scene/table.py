@@ -12,6 +12,7 @@ from typing import Any, NoReturn
 
 from sim.errors import InputError
 from garment.scene.schema import PER_SI, Key, Schema, rule, strip_optional, within
+from garment.units import value_hint
 
 
 class SceneError(InputError):
@@ -101,6 +102,8 @@ class Table:
             value = tuple(x / norm for x in value)
         if k.exists:
             value = value if value.is_absolute() else self.base / value
+            if k.exists == "file" and value.is_dir():
+                self.fail(key, f"{value} is a folder, not a file")
             if not (value.is_file() if k.exists == "file" else value.exists()):
                 self.fail(key, f"no such {k.exists}: {value}")
         return value
@@ -119,6 +122,8 @@ class Table:
             return tuple(self._convert(k, a, x, f"{key}[{i}]") for i, (a, x) in enumerate(zip(args, entries)))
         if hint is float:
             number = self.as_number(value, key, k.allow_inf, **k.bounds)
+            if k.plausible is not None:
+                self._check_plausible(number, key, k.unit, *k.plausible)
             return number / PER_SI[k.unit] if k.unit in PER_SI else number
         if hint is int:
             return self.as_integer(value, key, **k.bounds)
@@ -176,6 +181,13 @@ class Table:
     def _check_bounds(self, value: float, key: str, **bounds) -> None:
         if not within(value, **bounds):
             self.fail(key, f"must be {rule(**bounds)}, got {value:g}")
+
+    def _check_plausible(self, value: float, key: str, unit: str, lo: float | None, hi: float | None) -> None:
+        if within(abs(value), ge=lo, le=hi):
+            return
+        unit = f" {unit}" if unit else ""
+        limit = f"above {hi:g}{unit}" if hi is not None and abs(value) > hi else f"below {lo:g}{unit}"
+        self.fail(key, f"{value:g}{unit} is {limit}, not a plausible value{value_hint(value, unit.strip(), lo, hi)}")
 
 
 def _unknown_key(name: str, valid: tuple[str, ...]) -> str:

@@ -139,7 +139,7 @@ def test_conform_command_table_corners_and_preview(tmp_path, capsys, two_panels_
     (["--corners", "nowhere=1,2,3,4"], "no panel named nowhere"),
     (["--corners", "front=1,2,3,999"], "corner vertex 999 is not on the panel's boundary"),
     (["--control-points", "4x9"], "N, M >= 5"),
-    (["--seam-span", "0"], "--seam-span must be positive"),
+    (["--seam-span", "0"], "--seam-span: must be > 0"),
     (["--panels", "sleeve"], "no panel named sleeve"),
 ])
 def test_conform_command_bad_options(tmp_path, capsys, two_panels_and_a_hole, args, fragment):
