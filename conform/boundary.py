@@ -74,6 +74,19 @@ def polygon_area(points: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
+def sample_polygon(polygon, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along a closed polygon (K, 2), about `spacing` apart, and the index of each
+    polygon vertex among them (an outline panel's corner hints)."""
+    polygon = np.asarray(polygon, float)
+    pts, corners = [], []
+    for k in range(len(polygon)):
+        a, b = polygon[k], polygon[(k + 1) % len(polygon)]
+        count = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
+        corners.append(sum(len(p) for p in pts))
+        pts.append(a + (np.arange(count) / count)[:, None] * (b - a))
+    return np.concatenate(pts), np.asarray(corners)
+
+
 def extract_outline(panel: Panel) -> Outline:
     """Check the panel and return its boundary loop (PanelError if not a disk)."""
     if panel.faces is None:

@@ -4,7 +4,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 need_apt=()
-for pkg in build-essential python3-dev libsuitesparse-dev libopenblas0-pthread libosmesa6; do
+# chromium: the headless browser the `garment view` test loads Rerun's web viewer in.
+for pkg in build-essential python3-dev libsuitesparse-dev libopenblas0-pthread libosmesa6 chromium; do
     dpkg -s "$pkg" >/dev/null 2>&1 || need_apt+=("$pkg")
 done
 if [ ${#need_apt[@]} -gt 0 ]; then

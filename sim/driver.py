@@ -129,12 +129,23 @@ class SkipExisting:
         self.sink.close()
 
 
+def _part(rrd: Path, k: int) -> Path:
+    return rrd if k == 1 else rrd.with_name(f"{rrd.stem}.part{k}{rrd.suffix}")
+
+
 def segment_path(rrd: Path) -> Path:
     """Recording file of a resumed run: `run.rrd` if free, else the first free
     `run.part2.rrd`, `run.part3.rrd`, ... (earlier segments are never rewritten)."""
-    if not rrd.exists():
-        return rrd
-    k = 2
-    while (p := rrd.with_name(f"{rrd.stem}.part{k}{rrd.suffix}")).exists():
+    k = 1
+    while _part(rrd, k).exists():
         k += 1
-    return p
+    return _part(rrd, k)
+
+
+def segments(rrd: Path) -> list[Path]:
+    """The recording files of a run and its resumed parts: `run.rrd`, `run.part2.rrd`,
+    ... as long as they exist."""
+    out = []
+    while (p := _part(rrd, len(out) + 1)).exists():
+        out.append(p)
+    return out

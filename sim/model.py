@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from . import quadrature
 from .contact.drive import BodyDrive
-from .contact.mesh import ContactMesh
+from .contact.mesh import ContactMesh, crossing_parts
 from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
@@ -190,7 +190,7 @@ class Model:
         self._set_piece_rows(mesh)
         x0 = mesh.vertices(self.C0)
         if ipctk.has_intersections(mesh.mesh, x0):
-            raise InputError("the initial cloth intersects itself or an obstacle: move it apart before starting")
+            raise InputError(self._crossing_report(mesh, x0))
         barrier = BarrierEnergy(mesh, contact.dhat, contact.kappa)
         if len(seams.pairs):
             sewn, _ = seams.mesh(self.C0, np.full(len(seams.pairs), SEWN, np.int8))
@@ -199,6 +199,22 @@ class Model:
         if d <= 0.0:
             raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
         return barrier
+
+    def _crossing_report(self, mesh: ContactMesh, x: np.ndarray, most: int = 5) -> str:
+        """The initial-intersection error, naming the parts that cross and how much."""
+        def name(k):
+            return self.pieces[k].name if k >= 0 else f"obstacle {self.obstacles[-1 - k].name!r}"
+
+        counts = sorted(crossing_parts(mesh, x).items(), key=lambda kv: -kv[1])
+        if not counts:
+            return "the initial cloth intersects itself or an obstacle: move it apart before starting"
+        parts = [f"{name(a)} through itself ({n} edges)" if a == b else
+                 f"{name(max(a, b))} and {name(min(a, b))} ({n} edges)" if a < 0 else f"{name(a)} and {name(b)} ({n} edges)"
+                 for (a, b), n in counts[:most]]
+        more = f", and {len(counts) - most} more pairs" if len(counts) > most else ""
+        return ("the initial cloth intersects itself or an obstacle: " + ", ".join(parts) + more
+                + ". Move them apart before starting (a garment: check its panels' placement or the body's "
+                  "scale, up axis and translate)")
 
     # ------------------------------------------------------------------ state
     def initial_state(self, V0: np.ndarray | None = None) -> State:

@@ -216,23 +216,33 @@ def _open(path: Path) -> tuple[RrdReader, object]:
     return reader, stores[0]
 
 
+def replay(path: str | os.PathLike, sink, application_id: str = _SALVAGE_APP, recording_id: str | None = None) -> None:
+    """Replay the recording at `path` through rerun's own `.rrd` loader into `sink` (an
+    `rr.FileSink`, `rr.GrpcSink`, ...), keeping every message it can decode; the original
+    recording id and application id survive. Returns once everything is sent.
+
+    The replaying stream is a recording of its own (`application_id`, `recording_id`, new
+    by default) that holds nothing; given the file's ids it merges into the file's."""
+    path = Path(path)
+    with tempfile.TemporaryDirectory(prefix="garment-replay-") as tmp:
+        # The loader is chosen by file extension: make sure it is the .rrd one (and keep the
+        # user's file name, which rerun's warnings about undecodable messages print).
+        src = Path(tmp) / (path.name if path.suffix == ".rrd" else f"{path.name}.rrd")
+        os.symlink(path.resolve(), src)
+        rec = rr.RecordingStream(application_id, recording_id=recording_id or uuid.uuid4(), send_properties=False)
+        rec.set_sinks(sink)
+        # This returns as soon as the loader thread starts. Dropping the last handle of the
+        # stream joins the loader threads, then flushes and closes the sinks; `flush()` or
+        # `disconnect()` would not wait for the loader (rerun's RecordingStream::drop).
+        rec.log_file_from_path(src)
+        del rec
+        gc.collect()
+
+
 def _salvage(path: Path, tmpdir: str) -> Path:
-    """Replay `path` through rerun's `.rrd` loader into a new file, keeping every message
-    it can decode (the original recording id and application id survive)."""
-    # The loader is chosen by file extension: make sure it is the .rrd one (and keep the
-    # user's file name, which rerun's warnings about undecodable messages print).
-    src = Path(tmpdir) / "in" / (path.name if path.suffix == ".rrd" else f"{path.name}.rrd")
-    src.parent.mkdir()
-    os.symlink(path.resolve(), src)
+    """`path` replayed into a new file in `tmpdir` (see `replay`)."""
     out = Path(tmpdir) / "salvaged.rrd"
-    rec = rr.RecordingStream(_SALVAGE_APP, recording_id=uuid.uuid4())
-    rec.save(out)
-    # This returns as soon as the loader thread starts. Dropping the last handle of the
-    # stream joins the loader threads, then flushes and closes the file; `flush()` or
-    # `disconnect()` would not wait for the loader (rerun's RecordingStream::drop).
-    rec.log_file_from_path(src)
-    del rec
-    gc.collect()
+    replay(path, rr.FileSink(out))
     return out
 
 

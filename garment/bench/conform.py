@@ -33,6 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg.norm)
 
+from conform.boundary import sample_polygon
 from conform.pipeline import ConformOptions, conform_panel
 from sim.bspline import basis_matrix
 from sim.embedding import grid_faces
@@ -66,15 +67,10 @@ def shapes() -> dict[str, tuple[np.ndarray, tuple[float, float]]]:
 
 def outline_panel(name: str, polygon: np.ndarray, spacing: float) -> tuple[Panel, list]:
     """An outline panel sampled every `spacing` m; returns it and its corner positions."""
-    pts, hints = [], []
-    for k in range(len(polygon)):
-        a, b = polygon[k], polygon[(k + 1) % len(polygon)]
-        count = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
-        hints.append(sum(len(p) for p in pts))
-        pts.append(a + (np.arange(count) / count)[:, None] * (b - a))
+    rest, hints = sample_polygon(polygon, spacing)
     x, y = polygon[:, 0], polygon[:, 1]
     area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-    panel = Panel(name=name, source="bench", rest=np.concatenate(pts), corner_hints=np.asarray(hints), area=area)
+    panel = Panel(name=name, source="bench", rest=rest, corner_hints=hints, area=area)
     corners = [tuple(polygon[k]) for k in range(len(polygon)) if not (len(polygon) == 5 and k == 3)]
     return panel, corners
 

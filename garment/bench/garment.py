@@ -51,8 +51,9 @@ CASES = {
     "dress-band": ("dress_rumba", {**_PAPER_MESH, "seams": "band"}, None, {}),
 }
 COLUMNS = ("resolution", "dofs", "contact_vertices", "sew_steps", "sew_seconds_per_step", "settle_steps",
-           "settle_seconds_per_step", "steps", "seconds_per_step", "newton_iterations_per_step", "ccd_fraction",
-           "line_search_fraction", "seam_gap_max_mm", "build_seconds")
+           "settle_seconds_per_step", "steps", "seconds_per_step", "newton_iterations_per_step",
+           "factorizations_per_step", "pcg_iterations_per_step", "assembly_fraction", "factorization_fraction",
+           "solve_fraction", "ccd_fraction", "line_search_fraction", "seam_gap_max_mm", "build_seconds")
 DEFAULT_STEPS = 40
 # s: the end of the pre-roll run at the refined span (refine > 0). The hand-over's transient
 # outlasts 0.04 s: with that, the dress at 8 mm took 23-37 Newton iterations in the first

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .simulate import override_frames, simulate
+from .simulate import override_frames, print_how_to_open, simulate
 
 SCENE = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "poncho_rumba.toml"
 
@@ -18,9 +18,7 @@ def run(args) -> int:
     video = None if args.no_video else args.output.with_suffix(".mp4")
     simulate(scene, args.output, None, quiet=args.quiet, render_to=video,
              render_options=RenderOptions(size=(640, 640), fps=25.0, azimuth=-70.0, elevation=10.0))
-    print(f"\nrecording: {args.output.resolve()}  (open it with: rerun {args.output})")
-    if video is not None:
-        print(f"video:     {video.resolve()}")
+    print_how_to_open(args.output, video)
     return 0
 
 

@@ -1,8 +1,10 @@
 """`garment inspect RUN.rrd [--json] [--frame K --export out.obj|ply [--mesh NAME]]
+[--export out.usd [--mesh NAME] [--up z|y]]
 [--render out.mp4|out.gif|DIR [--render-size WxH] [--orbit] [--fps F]]`.
 
 Summarizes a Rerun recording (ids, entities, frames, time range, vertex counts, scalar
-statistics), exports a mesh at a frame, or renders the recording with PyVista. A damaged
+statistics), exports a mesh at a frame (OBJ, PLY) or every frame (USD, garment/io/usd.py),
+or renders the recording with PyVista. A damaged
 (truncated, corrupted) recording still gives whatever frames are intact, with an error
 line on stderr and exit status 1.
 """
@@ -25,7 +27,7 @@ def run(args) -> int:
 
     # Outputs and options first: nothing is read when they could not be written.
     if args.export is not None:
-        output_file(args.export, (".obj", ".ply"), "the exported mesh (--export)")
+        output_file(args.export, (".obj", ".ply", ".usd", ".usda", ".usdc"), "the exported mesh (--export)")
     options = None
     if args.render is not None:
         check_render_target(args.render)
@@ -64,6 +66,11 @@ def _frame_index(rec, k: int) -> int:
 
 
 def export(rec, args) -> None:
+    from garment.io.usd import SUFFIXES
+
+    if args.export.suffix.lower() in SUFFIXES:
+        export_usd(rec, args)
+        return
     from viz.recording import export_mesh, garment_mesh
 
     k = _frame_index(rec, args.frame if args.frame is not None else -1)
@@ -74,6 +81,25 @@ def export(rec, args) -> None:
         what = args.mesh or " + ".join(rec.cloth_names)
         err.print(f"wrote {args.export}: {what} at frame {k} (t = {rec.time_of(k):.4g} s), "
                   f"{len(verts)} vertices, {len(faces)} triangles")
+
+
+def export_usd(rec, args) -> None:
+    """Every intact frame of every mesh (or of --mesh) to one USD file."""
+    from garment.io.usd import write_usd
+
+    from .signals import terminate_raises_interrupt
+
+    if args.frame is not None:
+        raise InputError(f"--frame: {args.export.name} gets every frame (--frame is for .obj and .ply)")
+    names = [args.mesh] if args.mesh is not None else None
+    with terminate_raises_interrupt():  # SIGTERM unwinds too: the temporary file is removed
+        write_usd(rec, args.export, names, up=args.up or "z")
+    if not args.quiet:
+        frames = rec.frames
+        what = args.mesh or " + ".join(rec.meshes)
+        err.print(f"wrote {args.export}: {what}, {len(frames)} frames ({frames[0]}-{frames[-1]}, "
+                  f"t = {rec.time_of(frames[0]):.4g} - {rec.time_of(frames[-1]):.4g} s), "
+                  f"up axis {(args.up or 'z').upper()}")
 
 
 def render_recording(rec, out: Path, options, quiet: bool) -> None:
@@ -111,7 +137,8 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--frame", type=int, help="frame index for --export (negative: from the end; default last)")
     p.add_argument("--export", type=Path, metavar="OUT",
-                   help="write the garment mesh at --frame to OUT (.obj or .ply)")
+                   help="write the garment mesh at --frame to OUT (.obj or .ply), or every frame of "
+                        "every cloth piece and body to OUT (.usd, .usda, .usdc; up axis from --up, z)")
     p.add_argument("--mesh", help="export only this mesh (a cloth piece or a body)")
     add_render_options(p)
     p.add_argument("-q", "--quiet", action="store_true")

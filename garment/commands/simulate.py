@@ -364,7 +364,30 @@ def run(args) -> int:
              serve=args.serve, control_net=args.control_net, render_to=args.render, render_options=options,
              checkpoint=checkpoint, checkpoint_every=args.checkpoint_every, resume=args.resume,
              max_splits=args.max_splits, deterministic=args.deterministic)
+    if not args.quiet:
+        print_how_to_open(rrd, args.render, mesh_dir, resumed=args.resume)
     return 0
+
+
+def print_how_to_open(rrd: Path | None, video: Path | None = None, mesh_dir: Path | None = None,
+                      resumed: bool = False) -> None:
+    """On stdout, after a run: where its outputs are and the commands that open them (a
+    resumed run's recording is all its parts, run.rrd run.part2.rrd ...)."""
+    from shlex import join
+
+    from sim.driver import segments
+
+    files = (segments(rrd) if resumed else [rrd] if rrd.exists() else []) if rrd is not None else []
+    if files:
+        names = [str(p) for p in files]
+        print(f"\nrecording: {'  '.join(str(p.resolve()) for p in files)}\n"
+              f"  view it:  {join(['rerun', *names])}  (on a machine with a display)\n"
+              f"            {join(['garment', 'view', *names])}  (in a browser: Rerun's web viewer on localhost)\n"
+              f"  as USD:   {join(['garment', 'inspect', names[-1], '--export', str(files[-1].with_suffix('.usd'))])}")
+    if video is not None and video.exists():
+        print(f"video:     {video.resolve()}")
+    if mesh_dir is not None and mesh_dir.exists():
+        print(f"meshes:    {mesh_dir.resolve()}")
 
 
 def render_options(args):
@@ -387,7 +410,7 @@ def add_render_options(p) -> None:
     p.add_argument("--orbit", action="store_true", help="orbit the camera once around the scene")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (30)")
     p.add_argument("--up", choices=tuple(UP_VECTORS), help="the vertical of the picture "
-                   "(simulate: against the scene's gravity; inspect: z)")
+                   "and the up axis of a USD export (simulate: against the scene's gravity; inspect: z)")
 
 
 def register(sub) -> None:

@@ -23,6 +23,7 @@ class ContactMesh:
         excluded: cloth vertex pairs (i < j) that never collide (stitched neighbours)."""
         self.W = W.tocsr()
         self.n_cloth = W.shape[0]
+        self.piece_ids = piece_ids
         self.obstacles = list(obstacles)
         self.obstacle_vertices = (np.concatenate([o.at(0.0) for o in self.obstacles])
                                   if self.obstacles else np.zeros((0, 3)))
@@ -109,6 +110,19 @@ def crossing_pairs(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int) -> se
         if e.max() < n_cloth and f.max() < n_cloth:
             pairs.update((min(a, b), max(a, b)) for a in e.tolist() for b in f.tolist())
     return pairs
+
+
+def crossing_parts(mesh: ContactMesh, x: np.ndarray) -> dict[tuple[int, int], int]:
+    """Which parts cross which at positions x (V, 3), and with how many edge-triangle
+    crossings: parts are cloth pieces 0, 1, ... (mesh.piece_ids) and obstacles -1, -2, ...
+    (in mesh.obstacles' order). Keys are sorted pairs; a piece crossing itself is (k, k)."""
+    sizes = [o.vertices.shape[0] for o in mesh.obstacles]
+    part = np.concatenate([np.asarray(mesh.piece_ids), np.repeat(-1 - np.arange(len(sizes)), sizes)]).astype(int)
+    counts: dict[tuple[int, int], int] = {}
+    for e, f in _crossings(mesh.mesh, x, mesh.n_cloth):
+        a, b = sorted((int(part[e[0]]), int(part[f[0]])))
+        counts[a, b] = counts.get((a, b), 0) + 1
+    return counts
 
 
 def crossings_at(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int, vertices: np.ndarray) -> np.ndarray:

@@ -80,7 +80,7 @@ def test_only_a_handed_over_state_may_start_with_crossings():
         return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, contact=ContactOptions(adaptive_kappa=True),
                                        keep_crossings=keep_crossings))
 
-    with pytest.raises(InputError, match="intersects"):
+    with pytest.raises(InputError, match=r"intersects itself or an obstacle: a and b \(\d+ edges\)\. Move"):
         crossed(False)
 
     sim = crossed(True)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conform import ConformOptions, conform_all
-from conform.boundary import extract_outline
+from conform.boundary import extract_outline, sample_polygon
 from conform.split import darts_of, split_panel, split_seams
 from garment.cli import main
 from garment.io.garmentcode import read_garmentcode
@@ -18,7 +18,7 @@ from garment.io.patchfile import load_patchset, save_patchset
 from sim.patches import Panel
 from sim.seams.spec import PanelSeam
 
-from tests.support.panels import interval_length, polygon_points, rest_points
+from tests.support.panels import interval_length, rest_points
 
 
 def skirt_pattern(path, dart_depth=20.0, dart_width=3.0, with_band=True):
@@ -179,7 +179,7 @@ def ear_clip(P: np.ndarray) -> np.ndarray:
 
 def test_a_darted_mesh_panel_is_split_and_lifted_from_its_mesh():
     corners = np.array([[0, 0], [0.5, 0], [0.5, 0.6], [0.265, 0.6], [0.25, 0.35], [0.235, 0.6], [0, 0.6]])
-    rest, _ = polygon_points(corners, 0.02)
+    rest, _ = sample_polygon(corners, 0.02)
     faces = ear_clip(rest)
     world = np.column_stack([rest, 0.5 * rest[:, 1]])  # a sheared placement: lift is exact
     panel = Panel("skirt", "test", rest, faces=faces, world=world)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from garment.cli import main
+from garment.commands.simulate import print_how_to_open
 from garment.io import read_frame
 from garment.scene import loads_scene
 from garment.build import build_simulator
@@ -16,11 +17,13 @@ from viz.recording import read_rrd_positions
 from tests.support.scenes import HANGING_SHEET
 
 
-def test_simulate_writes_recording_and_meshes(tmp_path):
+def test_simulate_writes_recording_and_meshes(tmp_path, capsys):
     scene = tmp_path / "small.toml"
     scene.write_text(HANGING_SHEET)
     rrd, frames = tmp_path / "run.rrd", tmp_path / "frames"
-    assert main(["simulate", str(scene), "-o", str(rrd), "--mesh-dir", str(frames), "-q"]) == 0
+    assert main(["simulate", str(scene), "-o", str(rrd), "--mesh-dir", str(frames)]) == 0
+    out = capsys.readouterr().out  # how to open the outputs
+    assert f"rerun {rrd}" in out and f"garment view {rrd}" in out and f"meshes:    {frames}" in out
 
     # The same scene from Python gives the same final frame: the CLI is a thin layer.
     sim = build_simulator(loads_scene(HANGING_SHEET))
@@ -79,3 +82,17 @@ def test_bench_json_cloth_case(capsys):
     (case,) = json.loads(capsys.readouterr().out)["cases"]
     assert case["steps"] == 2 and case["newton_iterations_per_step"] >= 1
     assert case["seconds_per_step"] > 0 and case["dofs"] == 3 * (144 - 2)
+
+
+def test_how_to_open_a_resumed_run(tmp_path, capsys):
+    """Every part of a resumed recording, the video and the mesh folder; nothing missing."""
+    rrd, video = tmp_path / "run.rrd", tmp_path / "run.mp4"
+    for p in (rrd, tmp_path / "run.part2.rrd", video):
+        p.write_bytes(b"")
+    print_how_to_open(rrd, video, tmp_path / "no_frames", resumed=True)
+    out = capsys.readouterr().out
+    both = f"{rrd} {tmp_path / 'run.part2.rrd'}"
+    assert f"rerun {both}" in out and f"garment view {both}" in out
+    assert f"video:     {video}" in out and "meshes" not in out
+    print_how_to_open(rrd, None, None)  # not resumed: the parts on disk are another run's
+    assert "part2" not in capsys.readouterr().out

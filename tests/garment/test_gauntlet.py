@@ -87,7 +87,7 @@ SCENES = [
     ("obj_frames_topology", lambda t: with_obstacle(obj_dir(t)), [], ["f2.obj", "topology differs"]),
     ("missing_body", with_obstacle('animation = "gone.npz"'), [], ["gone.npz"]),
     ("cloth_inside_body", SCENE.replace("0.2]", "0.0]") + '\n[[obstacle]]\nname = "ball"\n'
-     'sphere = { center = [0.0, 0.0, 0.0], radius = 0.05 }\n', [], ["scene.toml", "intersects"]),
+     'sphere = { center = [0.0, 0.0, 0.0], radius = 0.05 }\n', [], ["scene.toml", "intersects", "and obstacle 'ball'"]),
     ("resume_without_checkpoint", SCENE, ["--resume"], ["no checkpoint"]),
 ]
 

@@ -286,7 +286,7 @@ def test_inspect_and_conform_outputs_are_checked_first(tmp_path, capsys):
     rrd = tmp_path / "run.rrd"
     assert main(["simulate", str(scene), "-o", str(rrd), "-q"]) == 0
     for args, fragment in ((["--export", str(tmp_path)], "is a folder; the exported mesh (--export) is a file"),
-                           (["--export", str(tmp_path / "m.stl")], "must end in .obj or .ply, got '.stl'"),
+                           (["--export", str(tmp_path / "m.stl")], "must end in .obj or .ply or .usd or .usda or .usdc, got '.stl'"),
                            (["--render", str(tmp_path / "r.webm")], "render output must be .mp4, .gif")):
         check_clean_failure(main(["inspect", str(rrd), *args]), capsys.readouterr().err, [fragment], [])
     panel = panel_obj(tmp_path / "panel.obj")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from conform.boundary import sample_polygon
 from conform.curve_fit import evaluate
 from sim.patches import Panel
 from sim.bspline import basis_matrix
@@ -26,21 +27,9 @@ def grid(nx, ny, size=(0.2, 0.1), origin=(0.0, 0.0)):
     return V, F
 
 
-def polygon_points(poly, spacing):
-    """Points along the closed polygon, about `spacing` apart, and the index of each corner."""
-    poly = np.asarray(poly, float)
-    pts, idx = [], []
-    for k in range(len(poly)):
-        a, b = poly[k], poly[(k + 1) % len(poly)]
-        c = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
-        idx.append(sum(len(p) for p in pts))
-        pts.append(a + (np.arange(c) / c)[:, None] * (b - a))
-    return np.concatenate(pts), np.array(idx)
-
-
 def polygon_panel(name, poly, spacing=0.005, hints=True):
     """An outline panel sampled along the polygon, its vertices as corner hints."""
-    rest, idx = polygon_points(poly, spacing)
+    rest, idx = sample_polygon(poly, spacing)
     return Panel(name=name, source="test", rest=rest, corner_hints=idx if hints else None)
 
 
