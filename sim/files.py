@@ -123,10 +123,10 @@ def _check_writable(path: Path) -> None:
 
 
 def temporary_name(path: Path, keep_suffix: bool = False) -> Path:
-    """`.NAME.PID.tmp` beside `path` (`.STEM.PID.tmp.SUFFIX` with keep_suffix, for writers
-    that choose the format by extension)."""
+    """`.NAME.PID.tmp` beside `path` (`.STEM.PID.tmp.suffix` with keep_suffix, lower case,
+    for writers that choose the format by extension: imageio, USD)."""
     if keep_suffix:
-        return path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+        return path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix.lower()}")
     return path.with_name(f".{path.name}.{os.getpid()}.tmp")
 
 

@@ -87,13 +87,10 @@ def export_usd(rec, args) -> None:
     """Every intact frame of every mesh (or of --mesh) to one USD file."""
     from garment.io.usd import write_usd
 
-    from .signals import terminate_raises_interrupt
-
     if args.frame is not None:
         raise InputError(f"--frame: {args.export.name} gets every frame (--frame is for .obj and .ply)")
     names = [args.mesh] if args.mesh is not None else None
-    with terminate_raises_interrupt():  # SIGTERM unwinds too: the temporary file is removed
-        write_usd(rec, args.export, names, up=args.up or "z")
+    write_usd(rec, args.export, names, up=args.up or "z")  # SIGTERM unwinds (garment.cli): no temporary file left
     if not args.quiet:
         frames = rec.frames
         what = args.mesh or " + ".join(rec.meshes)

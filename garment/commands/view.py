@@ -19,29 +19,27 @@ def run(args) -> int:
     from viz.recording import load_recording
     from viz.web_viewer import WebViewer
 
-    from .signals import terminate_raises_interrupt
-
     for option, port in (("--port", args.port), ("--grpc-port", args.grpc_port)):
         if not 1 <= port <= 65535:
             raise InputError(f"{option}: a port is 1-65535, got {port}")
     recordings = [load_recording(p) for p in args.recordings]  # InputError: missing, not a recording
     names = " ".join(str(p) for p in args.recordings)
     viewer = WebViewer(recordings, web_port=args.port, grpc_port=args.grpc_port)
-    with terminate_raises_interrupt():
-        try:
-            viewer.start()
-            if not args.quiet:
-                describe(recordings, viewer)
-            print(viewer.url, flush=True)
-            status = viewer.wait()
-        except ConnectionError as e:
-            raise InputError(f"{names}: {e}") from None
-        except RuntimeError as e:
-            raise RunStopped(f"{names}: {e}") from None
-        except KeyboardInterrupt:
-            raise Interrupted(f"stopped serving {names}") from None
-        finally:
-            viewer.stop()
+    # SIGTERM arrives as KeyboardInterrupt (garment.cli), like Ctrl-C.
+    try:
+        viewer.start()
+        if not args.quiet:
+            describe(recordings, viewer)
+        print(viewer.url, flush=True)
+        status = viewer.wait()
+    except ConnectionError as e:
+        raise InputError(f"{names}: {e}") from None
+    except RuntimeError as e:
+        raise RunStopped(f"{names}: {e}") from None
+    except KeyboardInterrupt:
+        raise Interrupted(f"stopped serving {names}") from None
+    finally:
+        viewer.stop()
     raise RunStopped(f"the Rerun web viewer stopped by itself (status {status})")
 
 

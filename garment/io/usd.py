@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.errors import InputError
+from sim.files import atomic_write
 from viz.rerun_sink import COLORS, ROOTS
 
 SUFFIXES = (".usd", ".usda", ".usdc")  # .usd is binary (crate), .usda text
@@ -68,14 +69,9 @@ def write_usd(recording, path: str | os.PathLike, names: list[str] | None = None
         prim_path = f"/World/{ROOTS[kind]}/{_identifier(name, taken)}"
         _define_mesh(stage, prim_path, name, kind, faces[name], recording, frames)
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix.lower()}")
-    try:
+    with atomic_write(path, keep_suffix=True) as tmp:
         if not stage.GetRootLayer().Export(str(tmp)):  # the format follows the suffix
             raise OSError(f"{path}: USD could not write the file")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return path
 
 
