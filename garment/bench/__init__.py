@@ -13,7 +13,7 @@ from typing import Callable
 from . import cloth, compare, contact_hessian, partial_factorization, plate, wrinkle
 from . import garment as garment_bench
 from . import conform as conform_bench
-from . import conform_garments, viz_overhead
+from . import conform_garments, corpus, viz_overhead
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,8 @@ BENCHMARKS = {
                   partial_factorization.run, (10, 20, 30), partial_factorization.COLUMNS),
         Benchmark("garment", "garment sewn onto the dancing body, cost per step by knot span (resolution = mm)",
                   garment_bench.run, (40, 20), garment_bench.COLUMNS),
+        Benchmark("corpus", "the GarmentCode corpus and the bundled patterns dressed with defaults "
+                  "(`garment dress`), success rate", corpus.run, (), corpus.COLUMNS, reports_steps=False),
         Benchmark("viz-overhead", "Rerun logging per frame against the hanging cloth's simulation (target < 5 %)",
                   viz_overhead.run, (100,), viz_overhead.COLUMNS, reports_steps=False),
         Benchmark("compare", "B-spline vs linear FEM (pairs, plate, locking, ablation; --case, --out)",

@@ -25,10 +25,16 @@ def run(args) -> int:
     kwargs = {"steps": args.steps}
     if args.quadrature:
         kwargs["quadrature"] = args.quadrature
-    if args.out and args.name != "compare":
-        raise InputError("--out applies to `garment bench compare` only")
-    if args.case and args.name not in ("compare", "garment", "conform-garments"):
-        raise InputError("--case applies to `garment bench compare`, `garment` and `conform-garments` only")
+    if args.out and args.name not in ("compare", "corpus"):
+        raise InputError("--out applies to `garment bench compare` and `corpus` only")
+    if args.case and args.name not in ("compare", "garment", "conform-garments", "corpus"):
+        raise InputError("--case applies to `garment bench compare`, `garment`, `conform-garments` and `corpus` "
+                         "only")
+    if args.jobs != 1:
+        number_option("--jobs", args.jobs, ge=1, le=64)
+        if args.name != "corpus":
+            raise InputError("--jobs applies to `garment bench corpus` only")
+        kwargs["jobs"] = args.jobs
     kwargs.update({k: v for k, v in (("case", args.case), ("out", args.out)) if v})
     if args.refine:
         number_option("--refine", args.refine, ge=0, le=4)
@@ -71,9 +77,12 @@ def register(sub) -> None:
                                   "locking, ablation); garment: poncho (default), dress, dress-hiphop "
                                   "(the paper's Hiphop cloth and contact), dress-frictionless or dress-band (contact off "
                                   "near the seams); conform-garments: "
-                                  "dress_knife, shirt_mean, dress_pencil")
+                                  "dress_knife, shirt_mean, dress_pencil; corpus: "
+                                  "designs or types, e.g. skirt_00,pants")
     b.add_argument("--refine", type=int, default=0, metavar="K",
                    help="garment only: sew at 2^K x the span, then refine exactly K times to it")
-    b.add_argument("--out", help="compare only: folder for compare.json, compare.md and PNG plots")
+    b.add_argument("--out", help="compare: folder for compare.json, compare.md and PNG plots; corpus: folder "
+                                 "for each design's outputs (out/bench-corpus)")
+    b.add_argument("--jobs", type=int, default=1, metavar="N", help="corpus only: designs dressed at once (1)")
     b.add_argument("-q", "--quiet", action="store_true")
     b.set_defaults(func=run)

@@ -55,6 +55,13 @@ def to_scene_frame(points: np.ndarray, scale: float = 1.0, up: str = "z", transl
     return points + np.asarray(translate, float)
 
 
+def from_scene_frame(points: np.ndarray, scale: float = 1.0, up: str = "z") -> np.ndarray:
+    """The inverse of to_scene_frame (no translate): scene points in the file's units and axes."""
+    if up == "y":
+        points = points[..., [0, 2, 1]] * np.array([1.0, 1.0, -1.0])
+    return points / scale
+
+
 def load_sequence(path: Path, scale: float = 1.0, up: str = "z", translate=(0.0, 0.0, 0.0),
                   fps: float | None = None) -> BodySequence:
     """Read an NPZ or OBJ-directory body sequence and check it is usable."""

@@ -6,7 +6,9 @@ with control points relative to the edge - x along it, y along its left normal, 
 edge lengths - or `circle` [radius, large_arc, right] as in SVG), `translation` (3D) and
 `rotation` (XYZ Euler angles in degrees, applied as Rz Ry Rx: GarmentCode's convention).
 `pattern.stitches`: pairs of {panel, edge}; the two edges are sewn in opposite directions
-(both loops run counter-clockwise, so the start of one meets the end of the other).
+(both loops run counter-clockwise, so the start of one meets the end of the other), unless
+a third entry says "right_wrong": the right side of one panel is sewn to the wrong side of
+the other (a collar turned over), so the edges run the same way and start meets start.
 
 Each panel becomes an outline Panel: the edges sampled every `spacing` metres (pattern
 vertices kept exactly, as corner hints), its rigid 3D placement, and its exact area
@@ -68,7 +70,9 @@ def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[Pa
     seams = []
     for s, pair in enumerate(stitches):
         try:
-            (a, b) = pair
+            a, b, *flags = pair
+            if len(flags) > 1 or flags and not isinstance(flags[0], str):
+                raise ValueError(f"a stitch is two {{panel, edge}} entries and an optional flag, got {len(pair)} entries")
             ca, cb = curves[a["panel"]][int(a["edge"])], curves[b["panel"]][int(b["edge"])]
         except (KeyError, IndexError, TypeError, ValueError, AttributeError, OverflowError) as e:
             raise InputError(f"{path}: pattern.stitches[{s}]: unknown panel or edge ({printable(e, 200)})") from None
@@ -76,7 +80,8 @@ def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[Pa
         t = np.linspace(0.0, 1.0, k)
         seams.append(PanelSeam(
             name=f"stitch{s}", panel_a=a["panel"], panel_b=b["panel"],
-            points_a=ca.at_length_fraction(t), points_b=cb.at_length_fraction(1.0 - t),
+            points_a=ca.at_length_fraction(t),
+            points_b=cb.at_length_fraction(t if flags == ["right_wrong"] else 1.0 - t),
         ))
     return panels, seams
 

@@ -1,15 +1,13 @@
-"""An independent triangle-triangle intersection check for the tests.
-
-Deliberately shares nothing with the code under test (no ipctk, no sim): brute force over
-all triangle pairs with overlapping bounding boxes, two triangles intersecting when an edge
-of one crosses the other (Moller-Trumbore segment test). Pairs sharing a vertex are
-skipped (adjacent triangles of one mesh touch by construction).
+"""The independent triangle-triangle intersection check for the tests: garment/verify.py
+(no ipctk, no sim), plus helpers that read a simulator's pieces.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+
+from garment.verify import intersecting_pairs, intersecting_triangles, shared_vertices  # noqa: F401
 
 
 def stacked_cloth(pieces) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
@@ -22,78 +20,6 @@ def stacked_cloth(pieces) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
         piece.append(np.full(len(p.topology.faces), k))
         offset += p.W.shape[0]
     return W, np.concatenate(faces), np.concatenate(piece)
-
-
-def _segments_hit_triangles(p, q, a, b, c, eps=1e-14):
-    """Vectorised: does segment p->q cross triangle abc (all (N, 3))?"""
-    d = q - p
-    e1, e2 = b - a, c - a
-    h = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, h)
-    ok = np.abs(det) > eps
-    f = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = p - a
-    u = f * np.einsum("ij,ij->i", s, h)
-    qv = np.cross(s, e1)
-    v = f * np.einsum("ij,ij->i", d, qv)
-    t = f * np.einsum("ij,ij->i", e2, qv)
-    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)
-
-
-def intersecting_pairs(V1, F1, V2=None, F2=None, chunk=200_000) -> int:
-    """Number of intersecting triangle pairs between mesh 1 and mesh 2 (or within mesh 1
-    when mesh 2 is omitted, skipping pairs that share a vertex)."""
-    return len(intersecting_triangles(V1, F1, V2, F2, chunk))
-
-
-def intersecting_triangles(V1, F1, V2=None, F2=None, chunk=200_000) -> np.ndarray:
-    """(K, 2) indices (triangle of mesh 1, triangle of mesh 2) of the intersecting pairs."""
-    same = V2 is None
-    if same:
-        V2, F2 = V1, F1
-    T1, T2 = V1[F1], V2[F2]
-    lo1, hi1 = T1.min(1), T1.max(1)
-    lo2, hi2 = T2.min(1), T2.max(1)
-    # Candidate pairs by sorting on x (a window as wide as the widest triangle of mesh 2)
-    # and bounding-box overlap.
-    i_all, j_all = [], []
-    order = np.argsort(lo2[:, 0])
-    lo2s = lo2[order, 0]
-    width = float((hi2[:, 0] - lo2[:, 0]).max(initial=0.0))
-    for i in range(len(T1)):
-        k0 = np.searchsorted(lo2s, lo1[i, 0] - width, side="left")
-        k = np.searchsorted(lo2s, hi1[i, 0], side="right")
-        j = order[k0:k]
-        j = j[(hi2[j] >= lo1[i]).all(1) & (lo2[j] <= hi1[i]).all(1)]
-        if same:
-            j = j[j > i]
-            j = j[~np.isin(F2[j], F1[i]).any(1)]
-        i_all.append(np.full(len(j), i))
-        j_all.append(j)
-    I, J = np.concatenate(i_all), np.concatenate(j_all)
-    hits = []
-    for s in range(0, len(I), chunk):
-        A, B = T1[I[s:s + chunk]], T2[J[s:s + chunk]]
-        hit = np.zeros(len(A), bool)
-        for e in range(3):
-            p, q = A[:, e], A[:, (e + 1) % 3]
-            hit |= _segments_hit_triangles(p, q, B[:, 0], B[:, 1], B[:, 2])
-            p, q = B[:, e], B[:, (e + 1) % 3]
-            hit |= _segments_hit_triangles(p, q, A[:, 0], A[:, 1], A[:, 2])
-        hits.append(np.nonzero(hit)[0] + s)
-    k = np.concatenate(hits) if hits else np.zeros(0, np.int64)
-    return np.stack([I[k], J[k]], axis=1)
-
-
-def shared_vertices(V, F) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices at exactly the same position become one (the sewn panels' files repeat
-    their common seam vertices bit for bit); faces collapsed by it (at a dart tip) or
-    repeated (both sides of a closed dart) are dropped. Returns (V', F')."""
-    X, label = np.unique(V, axis=0, return_inverse=True)
-    T = label.ravel()[F]
-    T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 0] != T[:, 2])]
-    _, first = np.unique(np.sort(T, axis=1), axis=0, return_index=True)
-    return X, T[np.sort(first)]
 
 
 def garment_intersections(pieces, C, body_vertices, body_faces) -> tuple[np.ndarray, int, int]:

@@ -1,0 +1,278 @@
+"""One garment on one body with defaults: conform, place, sew, settle, check, write.
+
+    from garment.dress.job import dress
+    report = dress("pattern.json", "body.obj", "out/")
+
+writes out/patches.json (the conformed garment as placed), out/run.rrd, out/garment.obj
+(the settled garment, in the body file's units and axes, so it overlays the body) and
+out/report.json, and returns the report: status ("ok", or the failure category conform,
+placement, sewing, intersection, timeout, nan), seam_gap_max_mm, crossings (the
+independent check, garment/verify.py, summed over every exported frame), dofs, seconds,
+settle_time_s. Bad input (a file that cannot be read) raises sim.errors.InputError.
+
+The defaults are one mechanism for every garment (docs/dressing.md):
+- sewing: the body starts shrunk (`inset`, at most 0.4 x its local thickness) so seams
+  pulled straight across an armpit or shoulder clear it; seams stiffen over the first half
+  of `sew_time`, the body grows back over the second, pushing the cloth out by contact;
+- layout: panels that cross each other or the shrunk body move apart first (layout.py);
+- settling: the run ends when the garment is at rest (RMS control-point speed below
+  `rest_speed` over `rest_frames` frames, seams closed), or at `max_time`.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from sim.errors import InputError, SimulationError
+from sim.files import atomic_write, output_folder
+
+from ..io.bodies import from_scene_frame, to_scene_frame
+from ..verify import frame_crossings, shared_vertices
+from .frame import BodyFrame, detect, pattern_up
+from .layout import PlacementError, separate
+
+STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
+
+
+@dataclass
+class DressOptions:
+    """The defaults of `garment dress`; every garment gets the same ones."""
+
+    knot_span_mm: float = 40.0
+    material: str = "cotton"
+    seam_stiffness: float = 1e7  # N/m per metre of seam
+    inset: float = 0.05  # m the body starts inside its surface (capped at 0.4 x thickness)
+    sew_time: float = 0.6  # s: seams close in the first half, the body grows back in the second
+    dt: float = 0.01
+    steps_per_frame: int = 4  # exported frames at 25 per second
+    max_time: float = 3.0  # s of simulated time at most
+    rest_speed: float = 0.01  # m/s RMS control-point speed counted as at rest
+    rest_frames: int = 3
+    timeout: float = 600.0  # s of wall-clock time
+    mu: float = 0.2
+    dhat: float = 1e-3
+
+    @classmethod
+    def with_overrides(cls, overrides: dict | None) -> "DressOptions":
+        options = cls()
+        known = {f.name: f.type for f in fields(cls)}
+        for k, v in (overrides or {}).items():
+            if k not in known:
+                raise InputError(f"unknown dress setting {k!r}; known: {', '.join(known)}")
+            default = getattr(options, k)
+            try:
+                value = type(default)(v)
+            except (TypeError, ValueError):
+                raise InputError(f"dress setting {k} = {v!r}: expected a {type(default).__name__}") from None
+            if isinstance(value, (int, float)) and not (np.isfinite(value) and value > 0):
+                raise InputError(f"dress setting {k} = {v!r}: must be a positive number")
+            options = replace(options, **{k: value})
+        return options
+
+
+class DressFailure(Exception):
+    """A garment that could not be dressed, with its status category."""
+
+    def __init__(self, category: str, message: str):
+        super().__init__(message)
+        self.category = category
+
+
+def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -> dict:
+    """Dress `body` (a static mesh file) in `pattern` (GarmentCode JSON or a panel mesh);
+    see the module docstring. on_frame(frame, frames_max, stats_line): progress."""
+    start = time.perf_counter()
+    options = DressOptions.with_overrides(overrides)
+    pattern, body = Path(pattern), Path(body)
+    outdir = output_folder(outdir, "the dress output folder (-o)")
+    outdir.mkdir(parents=True, exist_ok=True)
+    report = {"pattern": str(pattern), "body": str(body), "status": None, "error": None,
+              "seam_gap_max_mm": None, "crossings": None, "dofs": None, "seconds": None, "settle_time_s": None,
+              "options": asdict(options)}
+    try:
+        frame, body_V, body_F = _body(body)
+        report["body_frame"] = frame.describe()
+        placed = _place(pattern, frame, body_V, body_F, options, outdir)
+        report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.items()}
+        _simulate(_scene(outdir / "patches.json", body, frame, options), options, outdir, frame, report,
+                  start, on_frame)
+    except DressFailure as e:
+        report["status"], report["error"] = e.category, str(e)
+    except PlacementError as e:
+        report["status"], report["error"] = "placement", str(e)
+    finally:
+        report["seconds"] = round(time.perf_counter() - start, 2)
+        if report["status"] is not None:
+            with atomic_write(outdir / "report.json") as tmp:
+                tmp.write_text(json.dumps(report, indent=1, allow_nan=False) + "\n")
+    return report
+
+
+def _body(path: Path):
+    from ..io.meshfile import read_mesh
+
+    V, F = read_mesh(path, "body mesh")
+    frame = detect(V, path)
+    return frame, to_scene_frame(V.astype(float), frame.scale, frame.up), F.astype(np.int32)
+
+
+def _place(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOptions, outdir: Path) -> dict:
+    """Conform the pattern, bring it into the body's frame, move crossing panels apart
+    (against the body as shrunk at the start) and write outdir/patches.json."""
+    from conform.pipeline import ConformOptions, conform_all
+
+    from ..io.garments import read_pattern
+    from ..io.obstacles import ObstacleGeometry
+    from ..io.patchfile import save_patchset
+
+    conform_options = ConformOptions(knot_span=options.knot_span_mm * 1e-3)
+    panels, seams = read_pattern(pattern, conform_options.finest_span)
+    ps = conform_all(panels, seams, conform_options)
+    if ps.failures:
+        raise DressFailure("conform", "panels that did not conform: "
+                           + "; ".join(f"{k}: {v}" for k, v in ps.failures.items()))
+    up = pattern_up(pattern)
+    for p in ps.patches:  # the pattern's frame to the simulator's (Z-up, metres)
+        p.world = np.ascontiguousarray(to_scene_frame(p.world, 1.0, up))
+    shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, grow=(0.5 * options.sew_time,
+                                                                               options.sew_time))
+    layout = separate(ps.patches, shrunk.at(0.0), body_F)
+    save_patchset(outdir / "patches.json", ps)
+    return layout.moved
+
+
+def _scene(patches: Path, body: Path, frame: BodyFrame, o: DressOptions):
+    from ..scene.read import parse_scene
+
+    data = {
+        "scene": {"name": patches.parent.name or "dress"},
+        "material": {"preset": o.material},
+        "garment": [{"name": "garment", "source": str(patches.resolve()), "seam_stiffness": o.seam_stiffness}],
+        "obstacle": [{"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up,
+                      "inset": o.inset}],
+        "contact": {"dhat": o.dhat, "kappa": "adaptive", "mu": o.mu},
+        "time": {"dt": o.dt, "steps_per_frame": o.steps_per_frame, "preroll": o.sew_time,
+                 "frames": int(np.ceil(o.max_time / (o.dt * o.steps_per_frame)))},
+    }
+    return parse_scene(data, patches.parent / "scene.toml")
+
+
+class _Check:
+    """Sink: the independent crossing check on every exported frame."""
+
+    def __init__(self):
+        self.crossings = 0
+        self.worst = (0, 0)
+        self.non_finite = False
+
+    def open(self, meshes) -> None:
+        self.meshes = meshes
+
+    def write(self, frame) -> None:
+        cloth = [(frame.positions[m.name], m.faces) for m in self.meshes if m.kind == "cloth"]
+        bodies = [(frame.positions[m.name], m.faces) for m in self.meshes if m.kind != "cloth"]
+        body, cloth_pairs = frame_crossings(cloth, bodies)
+        if body < 0:
+            self.non_finite = True
+            return
+        self.crossings += body + cloth_pairs
+        if body + cloth_pairs > sum(self.worst):
+            self.worst = (body, cloth_pairs)
+
+    def close(self) -> None:
+        pass
+
+
+def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: dict, start: float, on_frame) -> None:
+    from sim.driver import drive
+    from viz.rerun_sink import RerunSink
+
+    from ..build import build_simulator
+
+    try:
+        sim = build_simulator(scene)
+    except InputError as e:
+        raise DressFailure("placement", str(e)) from None
+    report["dofs"] = int(sim.n_dofs)
+    frames = scene.time.frames
+    check = _Check()
+    calm = {"frames": 0, "settled": None, "timeout": False, "steps": 0}
+
+    def at_rest() -> bool:
+        if time.perf_counter() - start > o.timeout:
+            calm["timeout"] = True
+            return True
+        if calm["settled"] is not None:
+            return True
+        return False
+
+    def on_step(st) -> None:
+        t = sim.state.t
+        calm["steps"] += 1
+        if calm["steps"] % o.steps_per_frame:
+            return
+        if on_frame is not None:
+            on_frame(calm["steps"] // o.steps_per_frame, frames, st)
+        if t < o.sew_time - 1e-9:
+            return
+        V = sim.state.V
+        rms = float(np.sqrt(np.mean(np.sum(V * V, axis=1))))
+        gaps = sim.seam_gaps()
+        closed = max(gaps.values(), default=0.0) < 1e-3
+        calm.setdefault("trace", []).append(round(rms * 1e3, 1))
+        calm["frames"] = calm["frames"] + 1 if rms < o.rest_speed and closed else 0
+        if calm["frames"] >= o.rest_frames and calm["settled"] is None:
+            calm["settled"] = t
+
+    sinks = [RerunSink(outdir / "run.rrd", recording_name=scene.name), check]
+    try:
+        drive(sim, frames, o.steps_per_frame, sinks, should_stop=at_rest, floor=o.dt / 16, on_step=on_step)
+    except SimulationError as e:
+        gaps = sim.seam_gaps()
+        report["seam_gap_max_mm"] = round(max(gaps.values(), default=0.0) * 1e3, 3)
+        bad = not np.all(np.isfinite(sim.state.C))
+        raise DressFailure("nan" if bad else "sewing" if sim.state.t < o.sew_time else "intersection", str(e)) from None
+    gaps = sim.seam_gaps()
+    gap = max(gaps.values(), default=0.0)
+    report["seam_gap_max_mm"] = round(gap * 1e3, 3)
+    report["crossings"] = int(check.crossings)
+    report["worst_frame_crossings"] = {"garment_body": check.worst[0], "garment_garment": check.worst[1]}
+    report["settle_time_s"] = None if calm["settled"] is None else round(calm["settled"], 3)
+    report["simulated_s"] = round(sim.state.t, 3)
+    report["speed_rms_mm_s"] = calm.get("trace", [])  # per exported frame after sewing
+    report["worst_seams_mm"] = {k: round(v * 1e3, 2) for k, v in sorted(gaps.items(), key=lambda kv: -kv[1])[:5]}
+    _write_garment(sim, outdir / "garment.obj", frame)
+    if check.non_finite or not np.all(np.isfinite(sim.state.C)):
+        report["status"] = "nan"
+    elif calm["timeout"]:
+        report["status"], report["error"] = "timeout", f"not at rest after {o.timeout:.0f} s of wall-clock time"
+    elif check.crossings:
+        report["status"] = "intersection"
+        report["error"] = f"{check.crossings} intersecting triangle pairs over the exported frames"
+    elif gap >= 1e-3:
+        report["status"] = "sewing"
+        report["error"] = "seams still open: " + ", ".join(f"{k} {v} mm" for k, v in report["worst_seams_mm"].items())
+    else:
+        report["status"] = "ok"
+
+
+def _write_garment(sim, path: Path, frame: BodyFrame) -> None:
+    """The settled garment as one mesh (sewn panels joined at their shared seam vertices),
+    in the body file's units and axes."""
+    pos = sim.positions()
+    cloth = [m for m in sim.topologies() if m.kind == "cloth"]
+    off = np.cumsum([0] + [len(pos[m.name]) for m in cloth])
+    X = np.concatenate([pos[m.name] for m in cloth])
+    T = np.concatenate([m.faces + o for m, o in zip(cloth, off)])
+    X, T = shared_vertices(X, T)
+    X = from_scene_frame(X, frame.scale, frame.up)
+    with atomic_write(path) as tmp:
+        with open(tmp, "w") as f:
+            f.write("# garment dress: the settled garment, in the body file's units and axes\n")
+            np.savetxt(f, X, fmt="v %.9g %.9g %.9g")
+            np.savetxt(f, T + 1, fmt="f %d %d %d")

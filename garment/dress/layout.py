@@ -1,0 +1,175 @@
+"""A valid starting layout: panels that cross each other or the (shrunk) body are moved
+apart before sewing, rigidly, along their outward normals.
+
+Pattern layouts place flat panels around the body (GarmentCode's `translation` and
+`rotation`), and nothing keeps them from crossing: front halves overlap at the centre
+line, a waistband sits inside the skirt's top, a hip panel dips into the body. The
+simulator refuses such a start (IPC needs an intersection-free state), so crossings are
+removed first, the way a tailor lays the pieces out: a panel that crosses the body moves
+out along its normal, and of two panels that cross, the outer one moves out. Each move is
+a few millimetres; the seams close the extra distance while sewing. What rigid moves cannot
+fix (a panel folded through itself, a pair still crossing after the largest allowed move)
+is a PlacementError that names the panels and where they cross.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import ipctk
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
+from sim.errors import InputError
+
+STEP = 0.004  # m, one push of a panel along its normal
+MOST = 0.15  # m, a panel is never moved further than this in all
+CLEARANCE = 0.002  # m, panels end at least this far from the body and from each other
+
+
+class PlacementError(InputError):
+    """The pattern's layout cannot be made valid by moving panels (status "placement")."""
+
+    category = "placement"
+
+
+@dataclass
+class Layout:
+    """What separate() did: each moved patch's total offset (m), and the rounds it took."""
+
+    moved: dict[str, float] = field(default_factory=dict)
+    rounds: int = 0
+
+
+@dataclass
+class _Surface:
+    """The patches as one triangle mesh: x = W C of each patch, stacked."""
+
+    owner: np.ndarray  # (V,) patch index of each vertex
+    faces: np.ndarray  # (F, 3) into the stacked vertices
+    W: list  # per patch: (V_k, n_cp_k) interpolation matrix
+
+    @classmethod
+    def of(cls, patches, density: float = 2.0) -> "_Surface":
+        owner, faces, Ws, offset = [], [], [], 0
+        for k, p in enumerate(patches):
+            n, m = p.shape
+            res = default_resolution(n, m, density)
+            u, v = sample_grid(n, m, res)
+            Ws.append(interpolation_matrix(u, v, n, m, 0, n * m))
+            faces.append(grid_faces(*res) + offset)
+            owner.append(np.full(len(u), k))
+            offset += len(u)
+        return cls(np.concatenate(owner), np.concatenate(faces).astype(np.int32), Ws)
+
+    def vertices(self, patches) -> np.ndarray:
+        return np.concatenate([W @ p.world.reshape(-1, 3) for W, p in zip(self.W, patches)])
+
+
+def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | None = None,
+              surface: _Surface | None = None) -> dict[tuple[int, int], np.ndarray]:
+    """Which parts cross which: {(a, b): crossing points (K, 3)}, a <= b patch indices, the
+    body being -1. An edge of one part passing through a triangle of another counts once."""
+    surface = surface or _Surface.of(patches)
+    x = surface.vertices(patches)
+    part = surface.owner
+    faces = surface.faces
+    if body_V is not None:
+        faces = np.concatenate([faces, body_F + len(x)]).astype(np.int32)
+        part = np.concatenate([part, np.full(len(body_V), -1)])
+        x = np.concatenate([x, body_V])
+    edges = ipctk.edges(faces)
+    broad = ipctk.LBVH()
+    broad.build(np.asfortranarray(x), np.asfortranarray(edges, dtype=np.int32), np.asfortranarray(faces), 0.0)
+    found: dict[tuple[int, int], list] = {}
+    for c in broad.detect_edge_face_candidates():
+        e, f = edges[c.edge_id], faces[c.face_id]
+        a, b = int(part[e[0]]), int(part[f[0]])
+        if (a == -1 and b == -1) or set(e.tolist()) & set(f.tolist()):
+            continue
+        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+            found.setdefault((min(a, b), max(a, b)), []).append(0.5 * (x[e[0]] + x[e[1]]))
+    return {k: np.array(v) for k, v in found.items()}
+
+
+def outward_normals(patches, body_V: np.ndarray) -> np.ndarray:
+    """(P, 3) unit normal of each patch at its middle, turned to face away from the
+    nearest body point (sleeves face away from the arm, not from the torso)."""
+    tree = cKDTree(body_V)
+    out = np.zeros((len(patches), 3))
+    for k, p in enumerate(patches):
+        C = p.world
+        n, m = p.shape
+        du = C[-1, m // 2] - C[0, m // 2]
+        dv = C[n // 2, -1] - C[n // 2, 0]
+        nrm = np.cross(du, dv)
+        centre = C.reshape(-1, 3).mean(0)
+        away = centre - body_V[tree.query(centre)[1]]
+        if np.linalg.norm(nrm) < 1e-12:
+            nrm = away
+        nrm = nrm / max(np.linalg.norm(nrm), 1e-12)
+        out[k] = nrm if nrm @ away >= 0 else -nrm
+    return out
+
+
+def _distance_to_body(patches, tree: cKDTree) -> np.ndarray:
+    """(P,) mean distance of each patch's control points to the nearest body vertex."""
+    return np.array([tree.query(p.world.reshape(-1, 3))[0].mean() for p in patches])
+
+
+def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, names=None) -> Layout:
+    """Move patches (their world control points, in place) until none crosses the body or
+    another; raise PlacementError naming what still crosses. names: for messages."""
+    names = names or [p.name for p in patches]
+    layout = Layout()
+    surface = _Surface.of(patches)
+    ref = body_V if body_V is not None else np.concatenate([p.world.reshape(-1, 3) for p in patches]).mean(0)[None]
+    normals = outward_normals(patches, ref)
+    tree = cKDTree(ref)
+    offset = np.zeros(len(patches))
+    for layout.rounds in range(int(MOST / STEP) + 1):
+        hits = crossings(patches, body_V, body_F, surface)
+        self_hits = {k: v for k, v in hits.items() if k[0] == k[1]}
+        if self_hits:
+            (k, _), pts = next(iter(self_hits.items()))
+            raise PlacementError(f"panel {names[k]} folds through itself ({len(pts)} crossings near "
+                                 f"{_where(pts)}): its conformed surface is not a valid start; try another knot span")
+        if not hits:
+            break
+        push = np.zeros(len(patches), bool)
+        far = _distance_to_body(patches, tree)
+        for (a, b), _ in hits.items():
+            if a == -1:
+                push[b] = True
+            else:  # the outer of the two layers moves out
+                push[a if far[a] > far[b] else b] = True
+        stuck = push & (offset + STEP > MOST)
+        if stuck.any():
+            raise PlacementError(_stuck_message(hits, names, offset))
+        for k in np.flatnonzero(push):
+            patches[k].world += STEP * normals[k]
+            offset[k] += STEP
+    else:
+        raise PlacementError(_stuck_message(crossings(patches, body_V, body_F, surface), names, offset))
+    if layout.rounds:  # a clearance beyond the last push, so contact starts apart
+        for k in np.flatnonzero(offset):
+            patches[k].world += CLEARANCE * normals[k]
+            offset[k] += CLEARANCE
+    layout.moved = {names[k]: float(offset[k]) for k in np.flatnonzero(offset)}
+    return layout
+
+
+def _where(points: np.ndarray) -> str:
+    lo, hi = points.min(0), points.max(0)
+    return f"({', '.join(f'{a * 100:.0f}..{b * 100:.0f}' for a, b in zip(lo, hi))}) cm"
+
+
+def _stuck_message(hits, names, offset) -> str:
+    def name(k):
+        return "the body" if k == -1 else f"panel {names[k]}"
+
+    pairs = sorted(hits.items(), key=lambda kv: -len(kv[1]))[:4]
+    where = "; ".join(f"{name(a)} and {name(b)}: {len(p)} crossings at {_where(p)}" for (a, b), p in pairs)
+    return (f"the layout stays invalid after moving panels up to {MOST * 100:.0f} cm apart: {where}. Fix the "
+            "panels' placement (translation, rotation) in the pattern, or check the body's scale and up axis")
