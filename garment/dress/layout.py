@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from sim.errors import InputError
 
-STEP = 0.004  # m, one push of a panel along its normal
+STEP = 0.004  # m, a panel's first push along its normal; each further push is one STEP longer
 MOST = 0.15  # m, a panel is never moved further than this in all
 CLEARANCE = 0.002  # m, panels end at least this far from the body and from each other
 
@@ -93,23 +93,50 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
     return {k: np.array(v) for k, v in found.items()}
 
 
-def outward_normals(patches, body_V: np.ndarray) -> np.ndarray:
-    """(P, 3) unit normal of each patch at its middle, turned to face away from the
-    nearest body point (sleeves face away from the arm, not from the torso)."""
-    tree = cKDTree(body_V)
+def _middles(patches) -> np.ndarray:
+    """(P, 3) the point of each patch's control net at its middle."""
+    return np.array([p.world[p.shape[0] // 2, p.shape[1] // 2] for p in patches])
+
+
+class _Body:
+    """Which side of the body's surface points are on, from the nearest triangle centre
+    and its normal (body meshes are dense: triangles a centimetre or two across)."""
+
+    def __init__(self, V: np.ndarray, F: np.ndarray):
+        T = V[F]
+        n = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+        # Faces wound clockwise (a negative signed volume) have normals pointing in.
+        volume = np.einsum("fd,fd->", T[:, 0], n) / 6.0
+        self.normals = n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None] * (1.0 if volume >= 0 else -1.0)
+        self.centres = T.mean(1)
+        self.tree = cKDTree(self.centres)
+
+    def side(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(outward unit normals of the nearest body triangles (P, 3), signed distances
+        along them (P,): negative inside the body)."""
+        idx = self.tree.query(points)[1]
+        n = self.normals[idx]
+        return n, np.einsum("pd,pd->p", points - self.centres[idx], n)
+
+
+def outward_normals(patches, body: "_Body | None") -> np.ndarray:
+    """(P, 3) unit normal of each patch at its middle, turned to agree with the body's
+    outward normal at the closest point (sleeves face away from the arm, a panel sunk into
+    the body still faces out)."""
+    mids = _middles(patches)
+    if body is not None:
+        away, _ = body.side(mids)
+    else:
+        away = mids - mids.mean(0)
     out = np.zeros((len(patches), 3))
     for k, p in enumerate(patches):
         C = p.world
         n, m = p.shape
-        du = C[-1, m // 2] - C[0, m // 2]
-        dv = C[n // 2, -1] - C[n // 2, 0]
-        nrm = np.cross(du, dv)
-        centre = C.reshape(-1, 3).mean(0)
-        away = centre - body_V[tree.query(centre)[1]]
+        nrm = np.cross(C[-1, m // 2] - C[0, m // 2], C[n // 2, -1] - C[n // 2, 0])
         if np.linalg.norm(nrm) < 1e-12:
-            nrm = away
+            nrm = away[k]
         nrm = nrm / max(np.linalg.norm(nrm), 1e-12)
-        out[k] = nrm if nrm @ away >= 0 else -nrm
+        out[k] = nrm if nrm @ away[k] >= 0 else -nrm
     return out
 
 
@@ -125,9 +152,11 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
     layout = Layout()
     surface = _Surface.of(patches)
     ref = body_V if body_V is not None else np.concatenate([p.world.reshape(-1, 3) for p in patches]).mean(0)[None]
-    normals = outward_normals(patches, ref)
+    body = _Body(body_V, body_F) if body_V is not None else None
+    normals = outward_normals(patches, body)
     tree = cKDTree(ref)
     offset = np.zeros(len(patches))
+    pushes = np.zeros(len(patches), int)
     for layout.rounds in range(int(MOST / STEP) + 1):
         hits = crossings(patches, body_V, body_F, surface)
         self_hits = {k: v for k, v in hits.items() if k[0] == k[1]}
@@ -135,21 +164,25 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
             (k, _), pts = next(iter(self_hits.items()))
             raise PlacementError(f"panel {names[k]} folds through itself ({len(pts)} crossings near "
                                  f"{_where(pts)}): its conformed surface is not a valid start; try another knot span")
-        if not hits:
-            break
         push = np.zeros(len(patches), bool)
+        if body is not None:  # a panel wholly inside the body crosses nothing, yet must come out
+            push |= body.side(_middles(patches))[1] < 0.0
+        if not hits and not push.any():
+            break
         far = _distance_to_body(patches, tree)
         for (a, b), _ in hits.items():
             if a == -1:
                 push[b] = True
             else:  # the outer of the two layers moves out
                 push[a if far[a] > far[b] else b] = True
-        stuck = push & (offset + STEP > MOST)
+        stuck = push & (offset >= MOST)
         if stuck.any():
             raise PlacementError(_stuck_message(hits, names, offset))
         for k in np.flatnonzero(push):
-            patches[k].world += STEP * normals[k]
-            offset[k] += STEP
+            pushes[k] += 1
+            d = min(STEP * pushes[k], MOST - offset[k])
+            patches[k].world += d * normals[k]
+            offset[k] += d
     else:
         raise PlacementError(_stuck_message(crossings(patches, body_V, body_F, surface), names, offset))
     if layout.rounds:  # a clearance beyond the last push, so contact starts apart

@@ -1,0 +1,112 @@
+"""`garment dress` end to end on a small garment: a two-panel tube skirt with uneven
+(gathered) side seams, from a GarmentCode pattern in centimetres, on a standing cylinder
+body in metres and Y-up. Checks the report against the files it wrote and the
+independent crossing check; plus the reader's `right_wrong` stitches."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from garment.cli import main
+from garment.dress.frame import detect
+from garment.dress.job import dress
+from garment.io.garmentcode import read_garmentcode
+from garment.verify import intersecting_triangles, shared_vertices
+
+
+def rect(w, h, x0=0.0):
+    return [[x0, 0], [x0 + w, 0], [x0 + w, h], [x0, h]]
+
+
+def panel(vertices, translation, rotation=(0, 0, 0)):
+    edges = [{"endpoints": [i, (i + 1) % len(vertices)]} for i in range(len(vertices))]
+    return {"vertices": vertices, "edges": edges, "translation": list(translation), "rotation": list(rotation)}
+
+
+def tube_skirt(path, back_height=34.0):
+    """Front 40 x 30 cm in front of the body, back 40 x back_height cm behind it (turned
+    180 degrees about Y so both face out); the side seams join edges of different lengths."""
+    front = panel(rect(40, 30), (-20, 80, 18))
+    back = panel(rect(40, back_height), (20, 80 - (back_height - 30), -18), (0, 180, 0))
+    spec = {"pattern": {"panels": {"front": front, "back": back},
+                        # edge 1 is the right side (going up), edge 3 the left side (going down)
+                        "stitches": [[{"panel": "front", "edge": 1}, {"panel": "back", "edge": 3}],
+                                     [{"panel": "front", "edge": 3}, {"panel": "back", "edge": 1}]]},
+            "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}
+    path.write_text(json.dumps(spec))
+    return path
+
+
+def cylinder_body(path):
+    body = trimesh.creation.cylinder(radius=0.13, height=1.7, sections=40).subdivide_to_size(0.04)
+    V = np.asarray(body.vertices)[:, [0, 2, 1]] * [1, 1, -1] + [0, 0.85, 0]  # Y-up, feet on y = 0
+    trimesh.Trimesh(V, np.asarray(body.faces), process=False).export(path)
+    return path
+
+
+def test_units_and_up_axis_detected():
+    person = np.array([[0, 0, 0], [0.5, 1.75, 0.3]])
+    assert detect(person).unit == "m" and detect(person).up == "y"
+    assert detect(person[:, [0, 2, 1]] * 100).unit == "cm" and detect(person[:, [0, 2, 1]] * 100).up == "z"
+    assert detect(person * 10).unit == "dm"  # MakeHuman
+    assert detect(person * 1000).unit == "mm"
+    with pytest.raises(Exception, match="cannot tell the body's units"):
+        detect(np.array([[0, 0, 0], [5.0, 5.0, 5.0]]))
+
+
+def test_right_wrong_stitch_runs_the_same_way(tmp_path):
+    spec = json.loads(tube_skirt(tmp_path / "p.json").read_text())
+    spec["pattern"]["stitches"][0].append("right_wrong")
+    (tmp_path / "rw.json").write_text(json.dumps(spec))
+    _, normal = read_garmentcode(tmp_path / "p.json")
+    _, flipped = read_garmentcode(tmp_path / "rw.json")
+    # The same edge pair: normally the start of one meets the end of the other; with
+    # right_wrong start meets start.
+    np.testing.assert_allclose(flipped[0].points_b, normal[0].points_b[::-1], atol=1e-12)
+    np.testing.assert_allclose(flipped[1].points_b, normal[1].points_b, atol=1e-12)
+    spec["pattern"]["stitches"][0][2:] = ["right_wrong", "extra"]
+    (tmp_path / "bad.json").write_text(json.dumps(spec))
+    with pytest.raises(Exception, match=r"stitches\[0\]"):
+        read_garmentcode(tmp_path / "bad.json")
+
+
+def test_gathered_seam_samples_at_equal_length_fractions(tmp_path):
+    _, seams = read_garmentcode(tube_skirt(tmp_path / "p.json", back_height=40.0))
+    a, b = seams[0].points_a, seams[0].points_b
+    la = np.linalg.norm(np.diff(a, axis=0), axis=1)
+    lb = np.linalg.norm(np.diff(b, axis=0), axis=1)
+    np.testing.assert_allclose(lb / la, 40.0 / 30.0, rtol=1e-9)  # the longer edge eased in evenly
+
+
+def test_dress_a_small_garment_end_to_end(tmp_path):
+    pattern = tube_skirt(tmp_path / "skirt.json")
+    body = cylinder_body(tmp_path / "body.obj")
+    out = tmp_path / "out"
+    report = dress(pattern, body, out, {"max_time": 1.0})
+    assert report["status"] == "ok", report
+    assert report["body_frame"] == "m, Y-up"
+    assert report["seam_gap_max_mm"] < 1.0
+    assert report["crossings"] == 0 and report["dofs"] > 0
+    assert json.loads((out / "report.json").read_text())["status"] == "ok"
+    assert (out / "run.rrd").stat().st_size > 0
+    # garment.obj: the settled garment in the body file's frame, independently clean
+    # against the body and itself.
+    G = trimesh.load(out / "garment.obj", process=False)
+    B = trimesh.load(body, process=False)
+    X, T = shared_vertices(np.asarray(G.vertices), np.asarray(G.faces))
+    assert len(intersecting_triangles(X, T, np.asarray(B.vertices), np.asarray(B.faces))) == 0
+    assert len(intersecting_triangles(X, T)) == 0
+    # Hanging around the hips of a Y-up body: below where the panels started (y <= 1.1 m).
+    assert 0.5 < X[:, 1].min() and X[:, 1].max() < 1.1
+    # The side seams closed: the front and back meet (one connected garment).
+    assert len(trimesh.Trimesh(X, T, process=False).split(only_watertight=False)) == 1
+
+
+def test_dress_command_reports_bad_input(tmp_path, capsys):
+    body = tmp_path / "box.obj"
+    trimesh.creation.box((5, 5, 5)).export(body)
+    code = main(["dress", str(tube_skirt(tmp_path / "s.json")), "--body", str(body), "-o", str(tmp_path / "o")])
+    assert code == 2
+    assert "cannot tell the body's units" in capsys.readouterr().err

@@ -1,0 +1,81 @@
+"""The starting layout made valid by garment/dress/layout.py: overlapping panels and a
+panel inside the body are moved apart (checked by the independent test), and what cannot
+be fixed is named."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from garment.dress.layout import CLEARANCE, PlacementError, crossings, separate
+from garment.verify import intersecting_triangles
+from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
+from sim.patches import Patch
+
+
+def mesh(p: Patch, density: float = 3.0):
+    n, m = p.shape
+    res = default_resolution(n, m, density)
+    W = interpolation_matrix(*sample_grid(n, m, res), n, m, 0, n * m)
+    return W @ p.world.reshape(-1, 3), grid_faces(*res)
+
+
+def independent_pairs(patches, body=None) -> int:
+    meshes = [mesh(p) for p in patches]
+    count = sum(len(intersecting_triangles(*meshes[i], *meshes[j]))
+                for i in range(len(meshes)) for j in range(i + 1, len(meshes)))
+    if body is not None:
+        count += sum(len(intersecting_triangles(*m, body.vertices, body.faces)) for m in meshes)
+    return count
+
+
+def torso(radius=0.15, height=1.7):
+    """A standing cylinder as the body, axis along Z through the origin."""
+    body = trimesh.creation.cylinder(radius=radius, height=height, sections=48).subdivide_to_size(0.05)
+    body.apply_translation([0.0, 0.0, height / 2])
+    return body
+
+
+def test_two_overlapping_panels_are_moved_apart():
+    body = torso()
+    # Two front panels crossing each other at 20 degrees in front of the body.
+    a = Patch.rectangle("left", (0.3, 0.4), (8, 10), origin=(-0.2, 0.2, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    tilt = np.deg2rad(20)
+    b = Patch.rectangle("right", (0.3, 0.4), (8, 10), origin=(-0.05, 0.2 - 0.15 * np.sin(tilt), 1.0),
+                        axis_u=(np.cos(tilt), np.sin(tilt), 0), axis_v=(0, 0, 1))
+    patches = [a, b]
+    assert independent_pairs(patches, body) > 0
+    layout = separate(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32))
+    assert independent_pairs(patches, body) == 0
+    assert not crossings(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32))
+    # Only one layer moved, outwards (away from the body), by a few centimetres at most.
+    assert len(layout.moved) == 1
+    assert 0 < max(layout.moved.values()) < 0.1
+
+
+def test_a_panel_inside_the_body_is_pushed_out():
+    body = torso()
+    # A back panel whose middle sits 3 cm inside the body's surface.
+    p = Patch.rectangle("back", (0.25, 0.3), (8, 9), origin=(-0.125, -0.12, 1.0), axis_u=(1, 0, 0),
+                        axis_v=(0, 0, 1))
+    V, F = np.asarray(body.vertices), np.asarray(body.faces, np.int32)
+    assert independent_pairs([p], body) > 0
+    layout = separate([p], V, F)
+    assert independent_pairs([p], body) == 0
+    # It moved backwards (-y, away from the body) and stays within a step of touching.
+    assert p.world[..., 1].max() < -0.12
+    inside = 0.15 - np.abs(p.world[..., 1]).min()
+    assert layout.moved["back"] == pytest.approx(abs(p.world[..., 1].max() + 0.12), abs=1e-9)
+    assert inside < 0.15 and layout.moved["back"] > CLEARANCE
+
+
+def test_impossible_layout_names_the_panels_and_where():
+    body = torso()
+    # Two panels crossing at right angles through each other's middle: moving either along
+    # its normal never clears the other.
+    a = Patch.rectangle("yoke", (0.6, 0.6), (8, 8), origin=(-0.3, 0.3, 0.9), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    b = Patch.rectangle("fin", (0.6, 0.6), (8, 8), origin=(0.0, 0.0, 0.9), axis_u=(0, 1, 0), axis_v=(0, 0, 1))
+    b.world[..., 1] += 0.0  # fin spans y 0..0.6, crossing the yoke at y = 0.3
+    with pytest.raises(PlacementError) as e:
+        separate([a, b], np.asarray(body.vertices), np.asarray(body.faces, np.int32))
+    text = str(e.value)
+    assert "panel yoke" in text and "panel fin" in text and " cm" in text and "placement" in text
