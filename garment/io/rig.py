@@ -78,6 +78,8 @@ def read_grouped_obj(path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
                     if len(corners) < 3:
                         raise InputError(f"{path}:{lineno}: a face needs at least 3 vertices")
                     current += [(corners[0], corners[a], corners[a + 1]) for a in range(1, len(corners) - 1)]
+            except InputError:
+                raise
             except (ValueError, IndexError):
                 raise InputError(f"{path}:{lineno}: cannot read {printable(line.strip()[:60])!r}") from None
     if not v:
@@ -197,6 +199,8 @@ def _read_weights(path, names: list[str], n_vertices: int) -> tuple[np.ndarray, 
         if bone not in names:
             raise InputError(f"{path}: weights for bone {printable(bone[:40])!r}, which the rig does not have "
                              "(are the weights for this rig?)")
+        if pairs == []:
+            continue
         try:
             a = np.asarray(pairs, dtype=float)
         except (ValueError, TypeError):

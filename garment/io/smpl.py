@@ -339,6 +339,12 @@ def _numpy(name: str):
             "_frombuffer": numeric._frombuffer}[name]
 
 
+def _encode(text: str, encoding: str = "utf-8") -> bytes:
+    if encoding not in ("latin1", "latin-1", "utf-8", "utf8"):
+        raise pickle.UnpicklingError(f"it encodes text as {encoding!r}")
+    return text.encode(encoding)
+
+
 class _Unpickler(pickle.Unpickler):
     """Only numpy arrays and dtypes, scipy sparse matrices and chumpy arrays (as stubs)."""
 
@@ -351,6 +357,8 @@ class _Unpickler(pickle.Unpickler):
                 return np.dtype
             if name in ("_reconstruct", "scalar", "_frombuffer"):
                 return _numpy(name)
+        if module == "_codecs" and name == "encode":  # how protocol 2 writes bytes
+            return _encode
         if module in ("copy_reg", "copyreg") and name == "_reconstructor":
             return copyreg._reconstructor
         if module in ("__builtin__", "builtins") and name == "object":
