@@ -174,9 +174,8 @@ class Spin:
         return self.speed * (s - 0.5 * self.ramp)
 
 
-def _start() -> float:
-    return key(0.0, unit="s", ge=0, doc="time in the motion of its first frame used (a CMU conversion's frame 0 is "
-                                         "a calibration T-pose: start at one frame or later)")
+def _start(note: str = "") -> float:
+    return key(0.0, unit="s", ge=0, doc=f"time in the motion of the first frame used{note}")
 
 
 def _end() -> float | None:
@@ -203,7 +202,7 @@ class SkinSpec:
                                               doc='[rig joint, BVH joint] pairs for names that differ (the others '
                                                   'pair by name); a BVH joint "" leaves the rig joint to turn with '
                                                   "its parent")
-    start: float = _start()
+    start: float = _start(" (a CMU conversion's frame 0 is a calibration T-pose: start one frame in)")
     end: float | None = _end()
 
 
