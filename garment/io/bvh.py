@@ -119,7 +119,8 @@ def read_bvh(path) -> BvhClip:
         raise InputError(f"{path}: not a BVH text file (byte {e.start} is not UTF-8)") from None
     head, sep, motion = text.partition("MOTION")
     if not sep:
-        raise InputError(f"{path}: no MOTION section (a BVH file has HIERARCHY, then MOTION with the frames)")
+        raise InputError(f"{path}: no MOTION section (truncated? a BVH file has HIERARCHY, then MOTION with the "
+                         "frames)")
     names, parents, offsets, channels, ends = _hierarchy(path, head)
     values, frame_time = _motion(path, motion, sum(len(c) for c in channels), head.count("\n") + 1)
     return BvhClip(path, names, np.asarray(parents), np.asarray(offsets, float), channels, values,
