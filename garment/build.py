@@ -51,13 +51,15 @@ def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: 
                            tuple(index[a] for a in s.after if a in index)) for s in ps.seams]
         stiffness += [g.seam_stiffness] * len(ps.seams)
     tm = scene.time
-    obstacles = [load_obstacle(o) for o in scene.obstacles]
+    obstacles = [load_obstacle(o, tm) for o in scene.obstacles]
     check_memory(scene, garment_patches, sum(len(o.vertices) for o in obstacles))
     # Pre-roll: bodies hold their first pose while the seams close; inset bodies grow
     # back in its second half, once the seams are sewn.
     sewn = 0.5 * tm.preroll if any(o.inset > 0.0 for o in scene.obstacles) else tm.preroll
     for o, spec in zip(obstacles, scene.obstacles):
-        o.delay = tm.preroll
+        # A rigged body's sequence starts with its blend from the bind pose, played at the
+        # end of the pre-roll.
+        o.delay = tm.preroll - (o.sequence.lead_in if o.sequence is not None else 0.0)
         o.inset, o.grow = spec.inset, (sewn, tm.preroll)
     model = bspline_model(
         patches, materials, groups, scene.load.gravity, scene.load.pressure, directions, tm.dt, tm.mode,
@@ -83,7 +85,7 @@ def build_linear_simulator(scene, resolution=None, layout: str = "grid",
     model = linear_model(meshes, worlds, [c.material for c in scene.cloths], groups, scene.load.gravity,
                          scene.load.pressure, _pressure_directions(scene), tm.dt, tm.mode,
                          NewtonOptions.for_time(tm, newton), contact_options(scene.contact),
-                         [load_obstacle(o) for o in scene.obstacles], [c.name for c in scene.cloths])
+                         [load_obstacle(o, tm) for o in scene.obstacles], [c.name for c in scene.cloths])
     return Simulator(model)
 
 
@@ -165,7 +167,9 @@ def scene_hash(scene) -> str:
                                time=dataclasses.replace(scene.time, frames=0))
     h.update(_canonical(spec).encode())
     for o in scene.obstacles:
-        for p in (o.mesh, o.animation):
+        rigged = [o.skin.mesh, o.skin.rig, o.skin.weights, o.skin.motion] if o.skin else \
+            [o.smpl.model, o.smpl.motion] if o.smpl else []
+        for p in [o.mesh, o.animation, *rigged]:
             if p is not None:
                 for f in sorted(Path(p).rglob("*")) if Path(p).is_dir() else [Path(p)]:
                     if f.is_file():

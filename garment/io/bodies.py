@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -26,11 +26,16 @@ _TALL_M = 1.0  # bodies this long along Y (m) are checked for a Y-up export
 
 @dataclass
 class BodySequence:
-    """frames (T, V, 3) float64 in m (Z-up), faces (F, 3) int32, frame_dt in s."""
+    """frames (T, V, 3) float64 in m (Z-up), faces (F, 3) int32, frame_dt in s. lead_in:
+    seconds of frames before the motion proper (a rigged body's blend from its bind pose,
+    garment/io/skinning.py), played at the end of the pre-roll; notes: what the reader
+    changed or assumed (garment/io/rigged.py)."""
 
     frames: np.ndarray
     faces: np.ndarray
     frame_dt: float
+    lead_in: float = 0.0
+    notes: list[str] = field(default_factory=list)
 
     def at(self, t: float) -> np.ndarray:
         """(V, 3) positions at time t: linear between frames, held after the last."""

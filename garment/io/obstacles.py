@@ -1,5 +1,5 @@
-"""Obstacle geometry from scene specs: triangle meshes, meshed spheres, planes, and
-animated bodies (garment/io/bodies.py)."""
+"""Obstacle geometry from scene specs: triangle meshes, meshed spheres, planes, animated
+bodies (garment/io/bodies.py) and bodies posed by a skeleton (garment/io/rigged.py)."""
 
 from __future__ import annotations
 
@@ -76,14 +76,15 @@ def _rotate(V: np.ndarray, axis, center, angle: float) -> np.ndarray:
     return c + X * cos + np.cross(k, X) * sin + np.outer(X @ k, k) * (1.0 - cos)
 
 
-def load_obstacle(spec) -> ObstacleGeometry:
-    """Geometry of a garment.scene.ObstacleSpec."""
-    geometry = _geometry(spec)
+def load_obstacle(spec, time=None) -> ObstacleGeometry:
+    """Geometry of a garment.scene.ObstacleSpec; `time` (the scene's TimeSpec) tells a
+    rigged body how to sample its motion (garment/io/rigged.py)."""
+    geometry = _geometry(spec, time)
     geometry.spin = getattr(spec, "spin", None)
     return geometry
 
 
-def _geometry(spec) -> ObstacleGeometry:
+def _geometry(spec, time=None) -> ObstacleGeometry:
     import trimesh
 
     if spec.kind == "plane":
@@ -92,6 +93,11 @@ def _geometry(spec) -> ObstacleGeometry:
         m = trimesh.creation.icosphere(subdivisions=spec.subdivisions, radius=spec.radius)
         V = np.asarray(m.vertices) + np.asarray(spec.center, float)
         return ObstacleGeometry(spec.name, V, np.asarray(m.faces, np.int32))
+    if spec.kind in ("skin", "smpl"):
+        from .rigged import rigged_sequence
+
+        seq = rigged_sequence(spec, time)
+        return ObstacleGeometry(spec.name, seq.frames[0].copy(), seq.faces, seq)
     if spec.kind == "animation":
         seq = load_sequence(spec.animation, spec.scale, spec.up or "z", spec.translate, spec.fps)
         if spec.up is None:

@@ -13,7 +13,9 @@ import numpy as np
 from sim.materials import MIN_CONTROL_POINTS, PRESETS, Material
 from garment.scene.schema import schema
 from garment.scene.specs import (
+    MOVING_KINDS,
     OBSTACLE_KINDS,
+    RIGGED_KINDS,
     ClothSpec,
     ContactSpec,
     GarmentSpec,
@@ -73,6 +75,9 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
         if o.inset > 0.0 and time_spec.preroll <= 0.0:
             raise SceneError(source, f"obstacle[{i}].inset", "an inset body grows out during the pre-roll: "
                                                             "set [time] preroll > 0")
+        if o.blend is not None and o.blend > time_spec.preroll:
+            raise SceneError(source, f"obstacle[{i}].blend", f"{o.blend:g} s is longer than the pre-roll "
+                                                            f"([time] preroll = {time_spec.preroll:g} s)")
     return Scene(
         name=info.get("name") or (path.stem if path else "scene"),
         path=path,
@@ -183,13 +188,23 @@ def _read_obstacle(t: Table, index: int) -> ObstacleSpec:
         t.fail(t.path, f"needs exactly one of {valid}, got {kinds or 'none'}")
     kind = kinds[0]
     values = {"name": f"obstacle{index}", "kind": kind, **t.values(lambda k: not k.kinds or kind in k.kinds)}
-    if t.schema[kind].sub is not None:  # sphere, plane: a sub-table
+    sub = t.schema[kind].sub
+    if sub is not None and sub.cls is not None:  # skin, smpl: a sub-table of their own
+        values[kind] = t.table(kind).build()
+    elif sub is not None:  # sphere, plane: a sub-table filling the obstacle's fields
         values.update(t.table(kind).values())
+    if kind in RIGGED_KINDS:
+        _check_motion_range(t.table(kind), values[kind])
     if "spin" in t:
-        if kind == "animation":
+        if kind in MOVING_KINDS:
             t.fail(t.key("spin"), "an animated body already moves; spin applies to static obstacles")
         values["spin"] = t.table("spin").build()
     return ObstacleSpec(**values)
+
+
+def _check_motion_range(t: Table, spec) -> None:
+    if spec.end is not None and spec.end <= spec.start:
+        t.fail(t.key("end"), f"must be after start ({spec.start:g} s), got {spec.end:g}")
 
 
 def _read_contact(root: Table, has_obstacles: bool) -> ContactSpec:

@@ -21,8 +21,10 @@ SEWING_MODES = ("dynamic", "quasistatic")
 MESH_FORMATS = ("npz", "obj", "ply")
 UP_AXES = ("y", "z")
 SEAM_CONTACT = ("merge", "band")
-OBSTACLE_KINDS = ("mesh", "animation", "sphere", "plane")
-FILE_KINDS = ("mesh", "animation")  # obstacles read from a file: scaled, turned and moved
+OBSTACLE_KINDS = ("mesh", "animation", "sphere", "plane", "skin", "smpl")
+RIGGED_KINDS = ("skin", "smpl")  # bodies posed from a skeleton's motion (garment/io/rigged.py)
+MOVING_KINDS = ("animation",) + RIGGED_KINDS
+FILE_KINDS = ("mesh",) + MOVING_KINDS  # obstacles read from a file: scaled, turned and moved
 
 
 # The keys of sim.materials.Material, which knows nothing of scene files.
@@ -172,12 +174,60 @@ class Spin:
         return self.speed * (s - 0.5 * self.ramp)
 
 
+def _start(note: str = "") -> float:
+    return key(0.0, unit="s", ge=0, doc=f"time in the motion of the first frame used{note}")
+
+
+def _end() -> float | None:
+    return key(None, unit="s", gt=0, doc="time in the motion where it stops; the body then holds its last pose",
+               default_text="the motion's end")
+
+
+@dataclass(frozen=True)
+class SkinSpec:
+    """A mesh skinned to a rig (MakeHuman/MPFB JSON) and moved by BVH motion capture,
+    retargeted from the capture's rest pose to the mesh's bind pose (garment/io/rig.py,
+    garment/io/retarget.py, docs/bodies.md)."""
+
+    mesh: Path = key(doc="the body mesh OBJ; its vertex order is what the rig and weights index", exists="file",
+                     required=True)
+    rig: Path = key(doc="the rig JSON: bones with parent, head and tail (MakeHuman, MPFB)", exists="file",
+                    required=True)
+    weights: Path = key(doc='the skin weights JSON: {"weights": {bone: [[vertex, weight], ...]}}', exists="file",
+                        required=True)
+    motion: Path = key(doc="the BVH motion capture", exists="file", required=True)
+    group: str | None = key(None, doc="the OBJ group that is the body (the other groups are left out)",
+                            default_text='every face; MakeHuman\'s base mesh needs "body"')
+    joints: tuple[tuple[str, str], ...] = key((), allow_empty=True,
+                                              doc='[rig joint, BVH joint] pairs for names that differ (the others '
+                                                  'pair by name); a BVH joint "" leaves the rig joint to turn with '
+                                                  "its parent")
+    start: float = _start(" (a CMU conversion's frame 0 is a calibration T-pose: start one frame in)")
+    end: float | None = _end()
+
+
+@dataclass(frozen=True)
+class SmplSpec:
+    """An SMPL, SMPL-H or SMPL-X body (the user's model file) moved by an AMASS-style motion
+    (garment/io/smpl.py, docs/bodies.md)."""
+
+    model: Path = key(doc="the model: .npz, or the official .pkl (v_template, shapedirs, posedirs, J_regressor, "
+                          "weights, kintree_table, f)", exists="file", required=True)
+    motion: Path = key(doc="the motion .npz: poses (T, 3 J), trans (T, 3), betas, mocap_framerate (AMASS)",
+                       exists="file", required=True)
+    start: float = _start()
+    end: float | None = _end()
+
+
 @declare(sphere=Key("a meshed sphere (an icosphere)"), plane=Key("a square plane meshed with two triangles"))
 @dataclass
 class ObstacleSpec:
     """A collision obstacle: a triangle mesh file, a meshed sphere, a plane, or an animated
     body (`animation`: an NPZ with verts (T, V, 3) and faces, or a directory of OBJ frames;
-    `fps` overrides the file's frame time; positions interpolate linearly in time).
+    `fps` overrides the file's frame time; positions interpolate linearly in time), or a
+    body posed by a skeleton's motion (`skin`: a rigged mesh and BVH motion capture;
+    `smpl`: an SMPL-family model and an AMASS motion), blending from its bind pose into
+    the motion's first frame over the last `blend` s of the pre-roll.
 
     mesh: path (relative paths resolve against the scene file's folder), scaled by
     `scale`, turned Z-up when `up` = "y", then moved by `translate`. sphere: `center`,
@@ -193,12 +243,21 @@ class ObstacleSpec:
         doc="an animated body: an NPZ with verts (T, V, 3) and faces, or a directory of OBJ frames; "
             "positions interpolate linearly in time",
     )
+    skin: SkinSpec | None = key(None, doc="a mesh skinned to a rig, moved by BVH motion capture (docs/bodies.md)")
+    smpl: SmplSpec | None = key(None, doc="an SMPL, SMPL-H or SMPL-X body moved by an AMASS-style motion "
+                                          "(docs/bodies.md)")
     fps: float | None = key(None, doc="frame rate, overriding the file's frame time", unit="1/s", gt=0,
-                            kinds=("animation",), default_text="the file's")
+                            kinds=MOVING_KINDS, default_text="the file's")
+    blend: float | None = key(None, unit="s", ge=0, kinds=RIGGED_KINDS,
+                              doc="the body moves from its bind pose into the motion's first frame over the last "
+                                  "`blend` s of the pre-roll (at most [time] preroll)",
+                              default_text="half of [time] preroll")
     spin: Spin | None = key(None, doc="optional: a rigid rotation (not for an animated body)", after="plane")
-    scale: float = key(1.0, doc="scale applied to the file's coordinates", gt=0, kinds=FILE_KINDS)
-    up: str | None = key(None, doc='the file\'s up axis; "y" is turned Z-up', choices=UP_AXES, kinds=FILE_KINDS,
-                         default_text="Z-up, and an animated body is checked for it")
+    scale: float = key(1.0, doc="scale applied to the file's coordinates (MakeHuman: decimetres, scale = 0.1)",
+                       gt=0, kinds=FILE_KINDS)
+    up: str | None = key(None, doc='the file\'s up axis; "y" is turned Z-up (smpl: the motion\'s; the model is Y-up)',
+                         choices=UP_AXES, kinds=FILE_KINDS,
+                         default_text="Z-up, and an animated or skinned body is checked for it; smpl: detected")
     translate: tuple[float, float, float] = key((0.0, 0.0, 0.0), doc="offset applied after scaling and turning",
                                                 unit="m", kinds=FILE_KINDS)
     center: tuple[float, float, float] = key((0.0, 0.0, 0.0), doc="centre", unit="m", table="sphere")
@@ -334,8 +393,8 @@ class Scene:
     description: str = key("", doc="free text", table="scene", allow_empty=True)
     obstacles: list[ObstacleSpec] = key(
         default_factory=list, toml="obstacle",
-        doc="a collision obstacle: exactly one of mesh, animation, [obstacle.sphere], [obstacle.plane]; "
-            "relative paths resolve against the scene file's folder",
+        doc="a collision obstacle: exactly one of mesh, animation, [obstacle.sphere], [obstacle.plane], "
+            "[obstacle.skin], [obstacle.smpl]; relative paths resolve against the scene file's folder",
     )
     contact: ContactSpec = key(default_factory=ContactSpec,
                                doc="IPC contact between cloths, garments and obstacles, with friction")

@@ -58,6 +58,27 @@ def _body(path: str) -> None:
     load_sequence(path, fps=None if path.endswith(".npz") else 25.0)
 
 
+def _rigged(kind: str, path: str) -> None:
+    """A rigged body from a folder of its files (tests/garment/test_fuzz.py), posed whole."""
+    from pathlib import Path
+
+    from garment.io.obstacles import load_obstacle
+    from garment.scene import ObstacleSpec
+    from garment.scene.specs import SkinSpec, SmplSpec
+
+    d = Path(path)
+
+    def one(pattern: str) -> Path:
+        return next(iter(sorted(d.glob(pattern))))
+
+    if kind == "skin":
+        spec = ObstacleSpec(name="body", kind="skin", up="y", skin=SkinSpec(
+            mesh=one("*.obj"), rig=one("*rig.json"), weights=one("*weights.json"), motion=one("*.bvh"), group="body"))
+    else:
+        spec = ObstacleSpec(name="body", kind="smpl", smpl=SmplSpec(model=one("*model.*"), motion=one("*motion.npz")))
+    load_obstacle(spec)
+
+
 def _garment(path: str) -> None:
     """A scene's [[garment]] source: a patch file, or a pattern conformed on the fly."""
     from pathlib import Path
@@ -85,6 +106,8 @@ def _reader(name: str, path: str, out: str) -> int:
         "obstacle": lambda: _obstacle(path),
         "garment": lambda: _garment(path),
         "checkpoint": lambda: read_checkpoint(path),
+        "skin": lambda: _rigged("skin", path),
+        "smpl": lambda: _rigged("smpl", path),
     }
     return _call(readers[name])
 
@@ -163,10 +186,22 @@ def _warm_up(pipeline) -> None:
                          pipeline.ConformOptions(knot_span=0.05))
 
 
+def _warm_skinning() -> None:
+    """Compile the skinning kernel here (one vertex, one joint), not in every child."""
+    import numpy as np
+
+    from garment.io.skinning import Rig, skin
+
+    rig = Rig(["a"], np.array([-1]), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3), np.int32),
+              np.zeros((1, 1), np.int32), np.ones((1, 1)))
+    skin(rig, np.eye(3)[None], np.zeros((1, 3)))
+
+
 def main() -> None:
     # Import what the readers use once, before forking: each child starts warm.
     import garment.cli  # noqa: F401
     import garment.io.bodies  # noqa: F401
+    import garment.io.rigged  # noqa: F401
     import garment.io.obstacles  # noqa: F401
     import garment.io.patchfile  # noqa: F401
     import meshio  # noqa: F401
@@ -176,6 +211,7 @@ def main() -> None:
 
     garment.cli.build_parser()  # imports every command's modules (garment.bench: 1.4 s)
     _warm_up(pipeline)
+    _warm_skinning()
     for line in sys.stdin:
         if line.strip():
             print(json.dumps(run(json.loads(line))), flush=True)

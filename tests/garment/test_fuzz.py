@@ -5,8 +5,10 @@ child (tests/garment/fuzz_worker.py). Every run must end with a clean exit statu
 for a partial conform or a damaged recording, 2 for bad input), no traceback, within
 30 s, below 2 GB of resident memory, and print only terminal-safe text.
 
-The fast set reads FAST_EXAMPLES inputs per reader; the slow set SLOW_EXAMPLES (5,200 in
-all) and prints the totals: inputs, tracebacks, hangs, peak memory, slowest run."""
+The fast set reads FAST_EXAMPLES inputs per reader; the slow set SLOW_EXAMPLES (8,000 in
+all) and prints the totals: inputs, tracebacks, hangs, peak memory, slowest run. Rigged
+bodies (BVH, MakeHuman rig and weights, SMPL model .npz/.pkl and motion) are read from a
+folder of their files with one of them mutated."""
 
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tests.garment.bodies.synthetic import bend_motion, column_model, write_column_bvh, write_column_rig
 from tests.support.panels import grid, write_obj
 from tests.support.paths import ROOT
 
@@ -118,10 +121,41 @@ def make_seeds(d: Path) -> dict[str, Path]:
     for k in range(2):
         trimesh.Trimesh(verts[k], ball.faces, process=False).export(d / "frames" / f"f{k}.obj")
     assert main(["simulate", str(scene), "-o", str(d / "run.rrd"), "-q"]) == 0
-    return {"panel_obj": obj, "panel_ply": d / "panel.ply", "panel_ascii_ply": d / "panel_ascii.ply",
+    rigged = _rigged_seeds(d)
+    return {**rigged, "panel_obj": obj, "panel_ply": d / "panel.ply", "panel_ascii_ply": d / "panel_ascii.ply",
             "garmentcode": d / "pattern.json", "patches": d / "conformed" / "patches.json", "scene": scene,
             "body_npz": d / "body.npz", "body_dir": d / "frames", "obstacle": d / "ball.obj", "rrd": d / "run.rrd",
             "checkpoint": d / "run.ckpt.npz"}
+
+
+def _rigged_seeds(d: Path) -> dict[str, Path]:
+    """Folders holding a rigged body's files (tests/garment/bodies/synthetic.py), the one
+    to mutate named to sort last (fuzz_one mutates a folder's last file)."""
+    import pickle
+
+    seeds = {}
+    names = {"mesh": "body.obj", "rig": "rig.json", "weights": "weights.json", "motion": "motion.bvh"}
+    for target in names:
+        folder = d / f"skin_{target}"
+        files = write_column_rig(folder)
+        write_column_bvh(folder / "motion.bvh")
+        files["motion"] = folder / "motion.bvh"
+        files[target].rename(folder / f"z_{names[target]}")
+        seeds[f"skin_{target}"] = folder
+    model, motion = column_model(), bend_motion(frames=11)
+    for target, (first, last) in {"model": (("motion.npz", motion), ("z_model.npz", model)),
+                                  "motion": (("model.npz", model), ("z_motion.npz", motion))}.items():
+        folder = d / f"smpl_{target}"
+        folder.mkdir()
+        for name, arrays in (first, last):
+            np.savez(folder / name, **arrays)
+        seeds[f"smpl_{target}"] = folder
+    folder = d / "smpl_pkl"
+    folder.mkdir()
+    np.savez(folder / "motion.npz", **motion)
+    (folder / "z_model.pkl").write_bytes(pickle.dumps(model, protocol=2))
+    seeds["smpl_pkl"] = folder
+    return seeds
 
 
 # (seed, reader the worker runs, mutations that apply besides the byte-level ones)
@@ -139,6 +173,13 @@ TARGETS = {
     "obstacle": ("obstacle", "obstacle", ("text",)),
     "rrd": ("rrd", "rrd", ()),
     "checkpoint": ("checkpoint", "checkpoint", ("npz",)),
+    "skin_mesh": ("skin_mesh", "skin", ("text",)),
+    "skin_rig": ("skin_rig", "skin", ("text", "json")),
+    "skin_weights": ("skin_weights", "skin", ("text", "json")),
+    "skin_motion": ("skin_motion", "skin", ("text",)),
+    "smpl_model": ("smpl_model", "smpl", ("npz",)),
+    "smpl_motion": ("smpl_motion", "smpl", ("npz",)),
+    "smpl_pkl": ("smpl_pkl", "smpl", ()),
 }
 
 

@@ -184,6 +184,28 @@ translate = [0, 0, 0.75]
 animation = "{ASSETS / 'bodies' / 'rumba_dancing_121f.npz'}"
 fps = 25.0
 
+[[obstacle]]
+scale = 0.1
+up = "y"
+fps = 120.0
+blend = 0.05
+[obstacle.skin]
+mesh = "{ASSETS / 'bodies' / 'makehuman_cmu' / 'body.obj'}"
+group = "body"
+rig = "{ASSETS / 'bodies' / 'makehuman_cmu' / 'rig.cmu_mb.json'}"
+weights = "{ASSETS / 'bodies' / 'makehuman_cmu' / 'weights.cmu_mb.json'}"
+motion = "{ASSETS / 'bodies' / 'makehuman_cmu' / '01_01.bvh'}"
+joints = [["LeftHandFinger1", "LFingers"], ["LeftShoulder", ""]]
+start = 3.5
+end = 6.5
+
+[[obstacle]]
+[obstacle.smpl]  # no SMPL model ships: any existing files do for reading the keys
+model = "{ASSETS / 'bodies' / 'rumba_dancing_121f.npz'}"
+motion = "{ASSETS / 'bodies' / 'rumba_dancing_121f.npz'}"
+start = 0.5
+end = 1.5
+
 [contact]
 enabled = true
 dhat = 1e-3
@@ -225,7 +247,9 @@ def test_every_key_example_is_valid():
     assert scene.cloths[0].material.E_bd == 1e4
     assert scene.pins[0].box == ((0.0, 0.0), (1.0, 0.1))
     assert scene.load.pressure_direction == (0.0, 0.0, 1.0)
-    assert [o.kind for o in scene.obstacles] == ["sphere", "plane", "mesh", "animation"]
+    assert [o.kind for o in scene.obstacles] == ["sphere", "plane", "mesh", "animation", "skin", "smpl"]
+    assert scene.obstacles[4].skin.joints == (("LeftHandFinger1", "LFingers"), ("LeftShoulder", ""))
+    assert scene.obstacles[5].smpl.end == 1.5
     assert scene.obstacles[0].spin.axis == (0.0, 0.0, 1.0)
     assert scene.contact.adaptive_kappa and scene.contact.kappa == ContactSpec().kappa
     assert scene.sewing == SewingSpec(20.0, 1.5, 8.0, 0.05, 2.5e-3, 0.4)

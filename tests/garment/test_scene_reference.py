@@ -14,6 +14,9 @@ from garment.scene.schema import NO_DEFAULT, schema
 
 from tests.support.paths import ASSETS
 MESH = str(ASSETS / "bodies" / "mean_all.obj")
+MH = ASSETS / "bodies" / "makehuman_cmu"
+SKIN = {"mesh": str(MH / "body.obj"), "rig": str(MH / "rig.cmu_mb.json"), "weights": str(MH / "weights.cmu_mb.json"),
+        "motion": str(MH / "01_01.bvh")}
 OBJ = str(ASSETS / "garments" / "dress_knife.obj")
 
 # A valid scene holding every table (absent keys take their defaults), and where each
@@ -26,7 +29,8 @@ BASE = {
     "load": {},
     "time": {},
     "output": {},
-    "obstacle": [{"mesh": MESH}, {"sphere": {"radius": 1.0}, "spin": {"speed": 1.0}}, {"plane": {}}],
+    "obstacle": [{"mesh": MESH}, {"sphere": {"radius": 1.0}, "spin": {"speed": 1.0}}, {"plane": {}},
+                 {"skin": SKIN}, {"smpl": {"model": MESH, "motion": MESH}}],
     "contact": {},
     "garment": [{"source": OBJ, "material": {}, "placement": {"file": OBJ}}],
     "sewing": {},
@@ -35,6 +39,8 @@ WHERE = {  # the first of an array of tables otherwise
     "obstacle.sphere": ("obstacle", 1, "sphere"),
     "obstacle.spin": ("obstacle", 1, "spin"),
     "obstacle.plane": ("obstacle", 2, "plane"),
+    "obstacle.skin": ("obstacle", 3, "skin"),
+    "obstacle.smpl": ("obstacle", 4, "smpl"),
 }
 
 
