@@ -66,6 +66,7 @@ def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: 
         NewtonOptions.for_time(tm, newton), None if scene.garments else scene.output.mesh_resolution,
         contact_options(scene.contact), obstacles, seams, stiffness or 1e6, sewing_options(scene, sewn),
         keep_crossings)
+    model.loads.window = (scene.load.start, scene.load.start + scene.load.ramp)
     V0 = np.zeros_like(model.C0)
     for c, piece in zip(scene.cloths, model.pieces):
         V0[piece.slice] = np.asarray(c.velocity, float)

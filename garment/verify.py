@@ -42,25 +42,10 @@ def intersecting_triangles(V1, F1, V2=None, F2=None, chunk=200_000) -> np.ndarra
     if same:
         V2, F2 = V1, F1
     T1, T2 = V1[F1], V2[F2]
-    lo1, hi1 = T1.min(1), T1.max(1)
-    lo2, hi2 = T2.min(1), T2.max(1)
-    # Candidate pairs by sorting on x (a window as wide as the widest triangle of mesh 2)
-    # and bounding-box overlap.
-    i_all, j_all = [], []
-    order = np.argsort(lo2[:, 0])
-    lo2s = lo2[order, 0]
-    width = float((hi2[:, 0] - lo2[:, 0]).max(initial=0.0))
-    for i in range(len(T1)):
-        k0 = np.searchsorted(lo2s, lo1[i, 0] - width, side="left")
-        k = np.searchsorted(lo2s, hi1[i, 0], side="right")
-        j = order[k0:k]
-        j = j[(hi2[j] >= lo1[i]).all(1) & (lo2[j] <= hi1[i]).all(1)]
-        if same:
-            j = j[j > i]
-            j = j[~np.isin(F2[j], F1[i]).any(1)]
-        i_all.append(np.full(len(j), i))
-        j_all.append(j)
-    I, J = np.concatenate(i_all), np.concatenate(j_all)
+    I, J = _candidates(T1, T2, same)
+    if same and len(I):  # triangles sharing a vertex touch by construction
+        shared = (F1[I][:, :, None] == F2[J][:, None, :]).any((1, 2))
+        I, J = I[~shared], J[~shared]
     hits = []
     for s in range(0, len(I), chunk):
         A, B = T1[I[s:s + chunk]], T2[J[s:s + chunk]]
@@ -73,6 +58,50 @@ def intersecting_triangles(V1, F1, V2=None, F2=None, chunk=200_000) -> np.ndarra
         hits.append(np.nonzero(hit)[0] + s)
     k = np.concatenate(hits) if hits else np.zeros(0, np.int64)
     return np.stack([I[k], J[k]], axis=1)
+
+
+def _candidates(T1, T2, same: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Triangle pairs whose bounding boxes overlap (i < j within one mesh): bounding
+    spheres about the centroids found near each other in a k-d tree, then the boxes
+    compared. Meshes of very uneven triangles (a 10 m ground quad) take a sweep instead,
+    where one radius for all would make every pair a candidate."""
+    from scipy.spatial import cKDTree
+
+    lo1, hi1, lo2, hi2 = T1.min(1), T1.max(1), T2.min(1), T2.max(1)
+    c1, c2 = T1.mean(1), T2.mean(1)
+    r1 = np.linalg.norm(T1 - c1[:, None], axis=2).max(1)
+    r2 = np.linalg.norm(T2 - c2[:, None], axis=2).max(1)
+    if len(T1) == 0 or len(T2) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    reach = float(r1.max() + r2.max())
+    if reach > 10.0 * float(np.median(np.concatenate([r1, r2])) * 2 + 1e-300):
+        return _sweep(lo1, hi1, lo2, hi2, same)
+    if same:
+        pairs = cKDTree(c1).query_pairs(reach, output_type="ndarray")
+        I, J = pairs[:, 0], pairs[:, 1]
+    else:
+        m = cKDTree(c1).sparse_distance_matrix(cKDTree(c2), reach, output_type="ndarray")
+        I, J = m["i"].astype(np.int64), m["j"].astype(np.int64)
+    keep = (hi2[J] >= lo1[I]).all(1) & (lo2[J] <= hi1[I]).all(1)
+    return I[keep], J[keep]
+
+
+def _sweep(lo1, hi1, lo2, hi2, same: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Overlapping boxes by sorting on x (a window as wide as the widest box of mesh 2)."""
+    i_all, j_all = [], []
+    order = np.argsort(lo2[:, 0])
+    lo2s = lo2[order, 0]
+    width = float((hi2[:, 0] - lo2[:, 0]).max(initial=0.0))
+    for i in range(len(lo1)):
+        k0 = np.searchsorted(lo2s, lo1[i, 0] - width, side="left")
+        k = np.searchsorted(lo2s, hi1[i, 0], side="right")
+        j = order[k0:k]
+        j = j[(hi2[j] >= lo1[i]).all(1) & (lo2[j] <= hi1[i]).all(1)]
+        if same:
+            j = j[j > i]
+        i_all.append(np.full(len(j), i))
+        j_all.append(j)
+    return np.concatenate(i_all).astype(np.int64), np.concatenate(j_all).astype(np.int64)
 
 
 def shared_vertices(V, F) -> tuple[np.ndarray, np.ndarray]:

@@ -172,7 +172,8 @@ class Model:
         if self.mode == "dynamic":
             self.inertia = InertiaEnergy(self.mass, self.dt)
             self.energies.append(self.inertia)
-        self.energies.append(ExternalForceEnergy(e.forces))
+        self.loads = ExternalForceEnergy(e.forces)
+        self.energies.append(self.loads)
         self.energies.append(BendingEnergy(PointData.concatenate(e.bending), np.concatenate(e.bending_D), self.n_cp))
         for model, parts in e.membranes.items():
             pts = PointData.concatenate([p for p, _ in parts])

@@ -28,6 +28,7 @@ def step(model: Model, state: State) -> StepStats:
     stats.extra["seam_pairs_blocked"] = float(blocked.sum()) if blocked is not None else 0.0
     if sewing is not None and sewing.hold(state.C, state.t, state.pleat_faces, blocked):
         model.potential.refresh_constant()
+    model.loads.set_time(t_next)
     targets = model.pin_targets(state.C, t_next)
     # Predictor C + dt V: the inertia target in dynamics, the secant (last increment)
     # predictor in quasi-statics (wrinkle 20x47: 41 -> 33 Newton iterations per load step).

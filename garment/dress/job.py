@@ -14,6 +14,8 @@ The defaults are one mechanism for every garment (docs/dressing.md):
 - sewing: the body starts shrunk (`inset`, at most 0.4 x its local thickness) so seams
   pulled straight across an armpit or shoulder clear it; seams stiffen over the first half
   of `sew_time`, the body grows back over the second, pushing the cloth out by contact;
+  velocities are dropped after each sewing step, and gravity is off until the body is
+  whole, then ramps in over `gravity_ramp`;
 - layout: panels that cross each other or the shrunk body move apart first (layout.py);
 - settling: the run ends when the garment is at rest (RMS control-point speed below
   `rest_speed` over `rest_frames` frames, seams closed), or at `max_time`.
@@ -48,9 +50,10 @@ class DressOptions:
     seam_stiffness: float = 1e7  # N/m per metre of seam
     inset: float = 0.05  # m the body starts inside its surface (capped at 0.4 x thickness)
     sew_time: float = 0.6  # s: seams close in the first half, the body grows back in the second
+    gravity_ramp: float = 0.2  # s: gravity, off while sewing, ramps in over this time
     dt: float = 0.01
     steps_per_frame: int = 4  # exported frames at 25 per second
-    max_time: float = 3.0  # s of simulated time at most
+    max_time: float = 2.5  # s of simulated time at most
     rest_speed: float = 0.01  # m/s RMS control-point speed counted as at rest
     rest_frames: int = 3
     timeout: float = 600.0  # s of wall-clock time
@@ -155,8 +158,11 @@ def _scene(patches: Path, body: Path, frame: BodyFrame, o: DressOptions):
         "garment": [{"name": "garment", "source": str(patches.resolve()), "seam_stiffness": o.seam_stiffness}],
         "obstacle": [{"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up,
                       "inset": o.inset}],
+        # Weightless while sewing: the garment cannot drop off the shrunk body before its
+        # seams hold and the body has grown back; then gravity ramps in.
+        "load": {"gravity": [0.0, 0.0, -9.81], "start": o.sew_time, "ramp": o.gravity_ramp},
         "contact": {"dhat": o.dhat, "kappa": "adaptive", "mu": o.mu},
-        "time": {"dt": o.dt, "steps_per_frame": o.steps_per_frame, "preroll": o.sew_time,
+        "time": {"dt": o.dt, "steps_per_frame": o.steps_per_frame, "preroll": o.sew_time, "sewing": "quasistatic",
                  "frames": int(np.ceil(o.max_time / (o.dt * o.steps_per_frame)))},
     }
     return parse_scene(data, patches.parent / "scene.toml")
@@ -218,7 +224,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
             return
         if on_frame is not None:
             on_frame(calm["steps"] // o.steps_per_frame, frames, st)
-        if t < o.sew_time - 1e-9:
+        if t < o.sew_time + o.gravity_ramp - 1e-9:
             return
         V = sim.state.V
         rms = float(np.sqrt(np.mean(np.sum(V * V, axis=1))))

@@ -128,6 +128,9 @@ class LoadSpec:
     pressure_direction: tuple[float, float, float] | None = key(
         None, doc="direction of the pressure (normalised)", normalise=True, default_text="each cloth's normal"
     )
+    start: float = key(0.0, doc="gravity and pressure are off before this time (a garment sewn weightless)",
+                       unit="s", ge=0)
+    ramp: float = key(0.0, doc="then they ramp in linearly over this time", unit="s", ge=0)
 
 
 @dataclass

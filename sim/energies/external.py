@@ -17,7 +17,16 @@ class ExternalForceEnergy(Energy):
     constant_hessian = True
 
     def __init__(self, forces: np.ndarray):
-        self.forces = np.asarray(forces, float)  # (n_cp, 3) N
+        self.full = np.asarray(forces, float)  # (n_cp, 3) N
+        self.forces = self.full
+        # s: loads off before window[0], ramped in linearly until window[1]. A garment
+        # sewn weightless around a body does not drop off it before the seams hold.
+        self.window = (0.0, 0.0)
+
+    def set_time(self, t: float) -> None:
+        t0, t1 = self.window
+        s = 1.0 if t >= t1 else 0.0 if t <= t0 else (t - t0) / (t1 - t0)
+        self.forces = self.full * s
 
     def value(self, C):
         return -float(np.sum(self.forces * C))

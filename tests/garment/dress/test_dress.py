@@ -40,8 +40,14 @@ def tube_skirt(path, back_height=34.0):
 
 
 def cylinder_body(path):
-    body = trimesh.creation.cylinder(radius=0.13, height=1.7, sections=40).subdivide_to_size(0.04)
-    V = np.asarray(body.vertices)[:, [0, 2, 1]] * [1, 1, -1] + [0, 0.85, 0]  # Y-up, feet on y = 0
+    """A standing cylinder (r = 10 cm, 1.7 m) with a hip (a 16 cm sphere at 65 cm) the
+    skirt comes to rest on: Y-up, in metres, feet on y = 0."""
+    trunk = trimesh.creation.cylinder(radius=0.10, height=1.7, sections=32).subdivide_to_size(0.05)
+    trunk.apply_translation([0, 0, 0.85])
+    hip = trimesh.creation.icosphere(subdivisions=3, radius=0.16)
+    hip.apply_translation([0, 0, 0.65])
+    body = trimesh.util.concatenate([trunk, hip])
+    V = np.asarray(body.vertices)[:, [0, 2, 1]] * [1, 1, -1]  # Z-up to Y-up
     trimesh.Trimesh(V, np.asarray(body.faces), process=False).export(path)
     return path
 
