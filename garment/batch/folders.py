@@ -24,7 +24,7 @@ from sim.files import atomic_write
 REPORT = "report.json"
 LOG = "job.log"
 LOCK = ".batch.lock"
-_TEMPORARY = re.compile(r"^\..+\.(tmp|old)-\d+$")
+_TEMPORARY = re.compile(r"^\.(.+)\.(tmp|old)-\d+$")
 
 
 def temporary(outdir: Path, job_id: str) -> Path:
@@ -64,12 +64,14 @@ def record_failure(outdir: Path, job_id: str, report: dict) -> Path:
     return finish(tmp, outdir, job_id)
 
 
-def remove_temporaries(outdir: Path) -> list[Path]:
-    """Remove the temporary folders of jobs that were running when a batch was stopped."""
+def remove_temporaries(outdir: Path, job_id: str | None = None) -> list[Path]:
+    """Remove the temporary folders of jobs whose process is gone (a stopped batch, a dead
+    worker): every job's, or only `job_id`'s (one attempt of a job runs at a time)."""
     gone = []
     if outdir.is_dir():
         for p in outdir.iterdir():
-            if _TEMPORARY.match(p.name) and p.is_dir():
+            m = _TEMPORARY.match(p.name)
+            if m and (job_id is None or m[1] == job_id) and p.is_dir():
                 shutil.rmtree(p, ignore_errors=True)
                 gone.append(p)
     return gone

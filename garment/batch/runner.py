@@ -34,6 +34,7 @@ from .manifest import Job
 from .store import Store
 
 DEFAULT_JOB = "garment.dress.job:dress"
+CANCEL_WAIT_S = 5.0  # for cancelled tasks' workers to be killed
 CAPACITY_EVERY_S = 10.0  # how often a cluster's room for tasks is looked up again (autoscaling)
 
 
@@ -70,14 +71,18 @@ def check_job(target: str) -> None:
 def run(jobs: list[Job], outdir: Path, store: Store, options: Options,
         on_result: Callable[[dict], None] = lambda r: None,
         on_state: Callable[[int, int], None] = lambda running, waiting: None,
-        on_retry: Callable[[Job, int, str], None] = lambda job, attempt, error: None) -> None:
+        on_retry: Callable[[Job, int, str], None] = lambda job, attempt, error: None,
+        stopped: Callable[[], bool] = lambda: False) -> None:
     """Run `jobs` to the end, calling on_result(result) as each finishes (after it is
     recorded), on_state(running, waiting) about twice a second, on_retry(job, next
-    attempt, error) when a crashed job runs again."""
+    attempt, error) when a crashed job runs again. stopped(): True once a stop was asked
+    for; checked every turn, since a library may swallow the KeyboardInterrupt (VTK's
+    import machinery turns one into an ImportError)."""
     import ray
 
     started = _connect(ray, options)
     running: dict = {}  # ObjectRef -> (job, attempt)
+    cancelled = False
     try:
         remote = ray.remote(task.run_attempt).options(
             num_cpus=options.threads, memory=int(options.memory_bytes) if options.memory_bytes else None,
@@ -85,6 +90,8 @@ def run(jobs: list[Job], outdir: Path, store: Store, options: Options,
         queue = deque((job, 1) for job in jobs)
         room, looked = _room(ray, options), time.monotonic()
         while queue or running:
+            if stopped():
+                raise KeyboardInterrupt
             if time.monotonic() - looked > CAPACITY_EVERY_S:
                 room, looked = _room(ray, options), time.monotonic()
             while queue and len(running) < room:
@@ -95,6 +102,8 @@ def run(jobs: list[Job], outdir: Path, store: Store, options: Options,
             for ref in ready:
                 job, attempt = running.pop(ref)
                 result = _outcome(ray, ref, job)
+                if result.pop("worker_died", False):
+                    folders.remove_temporaries(outdir, job.id)  # the dead attempt's
                 if result.pop("retry", False):
                     if attempt <= options.retries:
                         queue.appendleft((job, attempt + 1))
@@ -108,10 +117,17 @@ def run(jobs: list[Job], outdir: Path, store: Store, options: Options,
     except BaseException:  # KeyboardInterrupt (Ctrl-C, SIGTERM) above all
         for ref in running:
             ray.cancel(ref, force=True)  # kills the worker, and the job dies with it
+        try:  # until the workers are gone, so none renames a folder after the sweep below
+            ray.wait(list(running), num_returns=len(running), timeout=CANCEL_WAIT_S)
+        except BaseException:  # a second Ctrl-C: stop waiting
+            pass
+        cancelled = True
         raise
     finally:
         if started:
             ray.shutdown()
+        if running and cancelled:
+            folders.remove_temporaries(outdir)
 
 
 def _connect(ray, options: Options) -> bool:
@@ -176,5 +192,5 @@ def _outcome(ray, ref, job: Job) -> dict:
     except RayTaskError as e:  # task.py itself raised (a full disk, say): would raise again
         return {"id": job.id, "status": "crash", "error": f"the batch task failed: {e}", "report": None}
     except RayError as e:  # the worker or its node died under the task
-        return {"id": job.id, "status": "crash", "retry": True, "report": None,
+        return {"id": job.id, "status": "crash", "retry": True, "worker_died": True, "report": None,
                 "error": f"the Ray worker died ({type(e).__name__}): {str(e).splitlines()[0] if str(e) else ''}"}

@@ -11,7 +11,10 @@ are kept; --resume runs the rest).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
+import threading
 from pathlib import Path
 
 from rich.markup import escape
@@ -25,8 +28,7 @@ from .options import number_option
 
 
 def run(args) -> int:
-    from garment.batch import folders, results, runner, store, summary, thumbnails
-    from garment.batch.progress import BatchProgress
+    from garment.batch import folders, results, store, summary
 
     options = _options(args)
     outdir = output_folder(args.output, "the output folder (-o)").absolute()
@@ -45,30 +47,11 @@ def run(args) -> int:
                 record.add_jobs(jobs)
             folders.remove_temporaries(outdir)  # of a run that was killed
             every = record.jobs()
+            finished = record.results()
+            todo = [j for j in (jobs if jobs is not None else every.values()) if j.id not in finished]
+            notes: dict[str, str] = {}  # job id -> why it has no thumbnail
+            interrupted = _run_jobs(args, options, outdir, record, todo, len(finished), len(every), notes)
             done = record.results()
-            todo = [j for j in (jobs if jobs is not None else every.values()) if j.id not in done]
-            notes: dict[str, str] = {}
-            interrupted = False
-            with BatchProgress(len(todo), args.quiet, err) as shown:
-                if done:
-                    shown.note(f"resuming: {len(done)} of {len(every)} jobs already finished, {len(todo)} to run")
-
-                def finished(result: dict) -> None:
-                    shown.finished(result)
-                    if not args.no_thumbnails:
-                        _thumbnail(outdir / result["id"], notes)
-
-                try:
-                    if todo:
-                        runner.run(todo, outdir, record, options, on_result=finished, on_state=shown.state,
-                                   on_retry=shown.retry)
-                except KeyboardInterrupt:
-                    interrupted = True
-            done = record.results()
-            if not interrupted and not args.no_thumbnails:  # jobs of earlier runs without one
-                for job_id in done:
-                    if job_id not in notes and not (outdir / job_id / thumbnails.NAME).exists():
-                        _thumbnail(outdir / job_id, notes)
             csv = results.write(outdir, every, done)
             md, page = summary.write(outdir, every, done, notes)
         finally:
@@ -81,6 +64,37 @@ def run(args) -> int:
         err.print(f"{len(done)} jobs: {ok} ok, {len(done) - ok} failed\nwrote {escape(str(csv))}, "
                   f"{escape(str(md))}, {escape(str(page))}", highlight=False, soft_wrap=True)
     return 0
+
+
+def _run_jobs(args, options, outdir: Path, record, todo: list, finished: int, total: int,
+              notes: dict[str, str]) -> bool:
+    """Run `todo` with the progress line, then draw the thumbnails earlier runs did not;
+    True when stopped by a signal."""
+    from garment.batch import runner, thumbnails
+    from garment.batch.progress import BatchProgress
+
+    interrupted = False
+    with _StopRequests() as stop, BatchProgress(len(todo), args.quiet, err) as shown:
+        if finished:
+            shown.note(f"resuming: {finished} of {total} jobs already finished, {len(todo)} to run")
+
+        def on_result(result: dict) -> None:
+            shown.finished(result)
+            if not args.no_thumbnails and not stop.signal:
+                with stop.deferred():
+                    _thumbnail(outdir / result["id"], notes)
+
+        try:
+            if todo:
+                runner.run(todo, outdir, record, options, on_result=on_result, on_state=shown.state,
+                           on_retry=shown.retry, stopped=lambda: stop.signal is not None)
+            for job_id in [] if args.no_thumbnails else record.results():
+                if job_id not in notes and not (outdir / job_id / thumbnails.NAME).exists():
+                    with stop.deferred():
+                        _thumbnail(outdir / job_id, notes)
+        except KeyboardInterrupt:
+            interrupted = True
+    return interrupted or stop.signal is not None  # even one a library swallowed
 
 
 def _options(args):
@@ -122,6 +136,46 @@ def _jobs(args, outdir: Path):
         return None
     raise InputError("nothing to run: give a MANIFEST (CSV or TOML), or --patterns GLOB with --body BODY"
                      + ("" if not args.resume else f" ({outdir} holds no batch to resume)"))
+
+
+class _StopRequests:
+    """SIGINT, SIGTERM and SIGHUP during the batch: remembered in `signal`, and raised as
+    KeyboardInterrupt (as garment.cli does) except inside `deferred()`, around native code
+    that an exception must not cut short: a VTK import interrupted half way has crashed
+    the next one (SIGSEGV). The runner checks `signal` too, in case a library swallows
+    the exception."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+    def __init__(self):
+        self.signal: str | None = None
+        self.previous = {}
+        self.defer = False
+
+    def _handle(self, signum, _frame):
+        self.signal = signal.Signals(signum).name
+        if not self.defer:
+            raise KeyboardInterrupt(self.signal)
+
+    @contextlib.contextmanager
+    def deferred(self):
+        self.defer = True
+        try:
+            yield
+        finally:
+            self.defer = False
+        if self.signal:
+            raise KeyboardInterrupt(self.signal)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self.previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
+        return self
+
+    def __exit__(self, *exc):
+        for s, handler in self.previous.items():
+            signal.signal(s, handler)
+        return False
 
 
 def _thumbnail(folder: Path, notes: dict[str, str]) -> None:

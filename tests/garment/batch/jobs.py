@@ -1,7 +1,7 @@
 """Stand-in dressing jobs for the batch tests, called as garment.dress.job:dress would be.
 
-The pattern file is JSON that says what to do: {"behaviour": "ok" | "crash" | "sleep" |
-"bad_input", "delay": s, "rrd": template recording, "ledger": file}. Each job appends
+The pattern file is JSON that says what to do: {"behaviour": "ok" | "crash" | "kill_worker" |
+"sleep" | "bad_input", "delay": s, "rrd": template recording, "ledger": file}. Each job appends
 "start NAME" / "end NAME" to the ledger (NAME: the pattern's stem), so a test can count
 how often a job ran."""
 
@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import time
 from pathlib import Path
 
@@ -25,6 +26,9 @@ def run(pattern: Path, body: Path, outdir: Path, overrides: dict | None = None) 
     behaviour = spec["behaviour"]
     if behaviour == "crash":
         os._exit(1)  # as a segfault in native code would: no exception, no result
+    if behaviour == "kill_worker":  # the Ray worker running the task dies (OOM killer, lost node)
+        os.kill(os.getppid(), signal.SIGKILL)
+        time.sleep(60)  # killed with it
     if behaviour == "sleep":
         time.sleep(3600)
     if behaviour == "bad_input":
