@@ -19,6 +19,7 @@ import importlib.util
 import logging
 import os
 import signal
+import socket
 import threading
 import time
 from collections import deque
@@ -34,6 +35,7 @@ from .manifest import Job
 from .store import Store
 
 DEFAULT_JOB = "garment.dress.job:dress"
+PROBE_S = 5.0  # to connect to --address before handing it to Ray
 CANCEL_WAIT_S = 5.0  # for cancelled tasks' workers to be killed
 CAPACITY_EVERY_S = 10.0  # how often a cluster's room for tasks is looked up again (autoscaling)
 
@@ -68,35 +70,85 @@ def check_job(target: str) -> None:
         raise InputError(f"--job {target!r}: no module {module} (is it installed, or on PYTHONPATH?)")
 
 
-def run(jobs: list[Job], outdir: Path, store: Store, options: Options,
+class Cluster:
+    """Ray for one batch: `start()` starts a local instance or joins `options.address`
+    (InputError when it cannot, or when no node has room for one job), `stop()` shuts
+    down what start() started. An instance already running in this process (tests) is
+    used as it is and left running."""
+
+    def __init__(self, options: Options):
+        self.options = options
+        self.ray = None
+        self.started = False
+
+    def start(self) -> None:
+        if self.ray is not None:
+            return
+        import ray
+
+        self.started = _connect(ray, self.options)
+        self.ray = ray
+        self.room()
+
+    def room(self) -> int:
+        """Jobs the cluster can run at once: per alive node, CPUs / threads and memory /
+        memory per job, whichever is less; InputError when no node fits one job."""
+        o, room = self.options, 0
+        for node in self.ray.nodes():
+            if not node.get("Alive"):
+                continue
+            res = node.get("Resources", {})
+            fit = int(res.get("CPU", 0) // o.threads)
+            if o.memory_bytes:
+                fit = min(fit, int(res.get("memory", 0) // o.memory_bytes))
+            room += fit
+        if room == 0:
+            raise InputError(f"no node of the Ray cluster has {o.threads} CPUs and "
+                             f"{format_bytes(o.memory_bytes or 0)} of memory free for one job: lower "
+                             f"--threads-per-job or --memory-per-job")
+        return min(room, o.workers) if o.workers else room
+
+    def stop(self) -> None:
+        if self.started:
+            self.ray.shutdown()
+        self.ray, self.started = None, False
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+        return False
+
+
+def run(jobs: list[Job], outdir: Path, store: Store, cluster: Cluster,
         on_result: Callable[[dict], None] = lambda r: None,
         on_state: Callable[[int, int], None] = lambda running, waiting: None,
         on_retry: Callable[[Job, int, str], None] = lambda job, attempt, error: None,
         stopped: Callable[[], bool] = lambda: False) -> None:
-    """Run `jobs` to the end, calling on_result(result) as each finishes (after it is
-    recorded), on_state(running, waiting) about twice a second, on_retry(job, next
-    attempt, error) when a crashed job runs again. stopped(): True once a stop was asked
-    for; checked every turn, since a library may swallow the KeyboardInterrupt (VTK's
-    import machinery turns one into an ImportError)."""
-    import ray
-
-    started = _connect(ray, options)
+    """Run `jobs` on `cluster` (started here if it is not) to the end, calling
+    on_result(result) as each finishes (after it is recorded), on_state(running, waiting)
+    about twice a second, on_retry(job, next attempt, error) when a crashed job runs
+    again. stopped(): True once a stop was asked for; checked every turn, since a library
+    may swallow the KeyboardInterrupt (VTK's import machinery turns one into an
+    ImportError)."""
+    cluster.start()
+    ray, options = cluster.ray, cluster.options
     running: dict = {}  # ObjectRef -> (job, attempt)
-    cancelled = False
     try:
         remote = ray.remote(task.run_attempt).options(
             num_cpus=options.threads, memory=int(options.memory_bytes) if options.memory_bytes else None,
             max_retries=0)  # retries are ours: counted, and only for deaths
         queue = deque((job, 1) for job in jobs)
-        room, looked = _room(ray, options), time.monotonic()
+        room, looked = cluster.room(), time.monotonic()
         while queue or running:
             if stopped():
                 raise KeyboardInterrupt
             if time.monotonic() - looked > CAPACITY_EVERY_S:
-                room, looked = _room(ray, options), time.monotonic()
+                room, looked = cluster.room(), time.monotonic()
             while queue and len(running) < room:
                 job, attempt = queue.popleft()
-                running[remote.remote(_spec(job, attempt, outdir, options))] = (job, attempt)
+                running[_submit(remote, _spec(job, attempt, outdir, options))] = (job, attempt)
             on_state(len(running), len(queue))
             ready, _ = ray.wait(list(running), num_returns=len(running), timeout=0.5)
             for ref in ready:
@@ -115,24 +167,25 @@ def run(jobs: list[Job], outdir: Path, store: Store, options: Options,
                 store.record(result)
                 on_result(result)
     except BaseException:  # KeyboardInterrupt (Ctrl-C, SIGTERM) above all
-        for ref in running:
-            ray.cancel(ref, force=True)  # kills the worker, and the job dies with it
-        try:  # until the workers are gone, so none renames a folder after the sweep below
-            ray.wait(list(running), num_returns=len(running), timeout=CANCEL_WAIT_S)
-        except BaseException:  # a second Ctrl-C: stop waiting
-            pass
-        cancelled = True
+        if running:
+            _cancel(ray, list(running))
+            folders.remove_temporaries(outdir)  # the cancelled jobs'
         raise
-    finally:
-        if started:
-            ray.shutdown()
-        if running and cancelled:
-            folders.remove_temporaries(outdir)
+
+
+def _cancel(ray, refs: list) -> None:
+    """Cancel running tasks: their workers are killed, and the jobs die with them."""
+    for ref in refs:
+        ray.cancel(ref, force=True)
+    try:  # until the workers are gone, so none renames a folder after the caller's sweep
+        ray.wait(refs, num_returns=len(refs), timeout=CANCEL_WAIT_S)
+    except BaseException:  # a second Ctrl-C: stop waiting
+        pass
 
 
 def _connect(ray, options: Options) -> bool:
     """Start a local Ray instance or join `options.address`; True if started here (and so
-    to be shut down here). An instance already started in this process is used as it is."""
+    to be shut down here)."""
     if ray.is_initialized():
         return False
     quiet = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
@@ -140,6 +193,7 @@ def _connect(ray, options: Options) -> bool:
     sigterm = signal.getsignal(signal.SIGTERM)
     try:
         if options.address:
+            _reachable(options.address)
             try:
                 ray.init(address=options.address, **quiet)
             except (ConnectionError, RuntimeError, ValueError) as e:
@@ -158,29 +212,31 @@ def _connect(ray, options: Options) -> bool:
             signal.signal(signal.SIGTERM, sigterm)
 
 
-def _room(ray, options: Options) -> int:
-    """Jobs the cluster can run at once: per alive node, CPUs / threads and memory /
-    memory per job, whichever is less; InputError when no node fits one job."""
-    room = 0
-    for node in ray.nodes():
-        if not node.get("Alive"):
-            continue
-        res = node.get("Resources", {})
-        fit = int(res.get("CPU", 0) // options.threads)
-        if options.memory_bytes:
-            fit = min(fit, int(res.get("memory", 0) // options.memory_bytes))
-        room += fit
-    if room == 0:
-        raise InputError(f"no node of the Ray cluster has {options.threads} CPUs and "
-                         f"{format_bytes(options.memory_bytes or 0)} of memory free for one job: lower "
-                         f"--threads-per-job or --memory-per-job")
-    return min(room, options.workers) if options.workers else room
+def _reachable(address: str) -> None:
+    """InputError at once when nothing listens at HOST:PORT (Ray itself retries for minutes,
+    deaf to Ctrl-C); "auto" and other forms are left to Ray."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=PROBE_S).close()
+    except OSError as e:
+        raise InputError(f"--address {address}: nothing answers there ({e.strerror or e}); is the cluster's "
+                         f"head running (`ray start --head`, port 6379 by default, 10001 for ray://)?") from None
 
 
 def _spec(job: Job, attempt: int, outdir: Path, options: Options) -> dict:
     return {"job": job.spec(), "target": options.job, "outdir": str(outdir), "timeout_s": options.timeout_s,
             "threads": options.threads, "memory_bytes": options.memory_bytes, "attempt": attempt,
             "last": attempt > options.retries, "paths": options.paths}
+
+
+def _submit(remote, spec: dict):
+    try:
+        return remote.remote(spec)
+    except ModuleNotFoundError as e:  # Ray Client: the cluster pickles the task at once
+        raise InputError(f"the Ray cluster cannot import {e.name} ({e}): install this project (the same version) "
+                         f"on every node, see docs/batch.md") from None
 
 
 def _outcome(ray, ref, job: Job) -> dict:

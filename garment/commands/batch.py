@@ -28,7 +28,7 @@ from .options import number_option
 
 
 def run(args) -> int:
-    from garment.batch import folders, results, store, summary
+    from garment.batch import folders, results, runner, store
 
     options = _options(args)
     outdir = output_folder(args.output, "the output folder (-o)").absolute()
@@ -36,37 +36,49 @@ def run(args) -> int:
     if store.holds_batch(outdir) and not args.resume:
         raise InputError(f"{outdir}: already holds a batch ({store.NAME}); pass --resume to finish it, or "
                          f"choose another output folder")
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise InputError(f"{outdir}: cannot create the output folder ({e.strerror})") from None
-    with folders.locked(outdir):
-        record = store.Store(outdir)
+    with runner.Cluster(options) as cluster:
+        if not store.holds_batch(outdir):
+            cluster.start()  # an unreachable cluster, no room for a job: refused before OUTDIR is made
         try:
-            if jobs is not None:
-                record.add_jobs(jobs)
-            folders.remove_temporaries(outdir)  # of a run that was killed
-            every = record.jobs()
-            finished = record.results()
-            todo = [j for j in (jobs if jobs is not None else every.values()) if j.id not in finished]
-            notes: dict[str, str] = {}  # job id -> why it has no thumbnail
-            interrupted = _run_jobs(args, options, outdir, record, todo, len(finished), len(every), notes)
-            done = record.results()
-            csv = results.write(outdir, every, done)
-            md, page = summary.write(outdir, every, done, notes)
-        finally:
-            record.close()
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise InputError(f"{outdir}: cannot create the output folder ({e.strerror})") from None
+        with folders.locked(outdir):
+            total, done, interrupted = _batch(args, cluster, outdir, jobs)
     if interrupted:
-        raise Interrupted(f"{len(done)} of {len(every)} jobs finished (kept in {outdir}); "
+        raise Interrupted(f"{len(done)} of {total} jobs finished (kept in {outdir}); "
                           f"run the same command with --resume to run the rest")
     if not args.quiet:
         ok = sum(r["status"] == "ok" for r in done.values())
-        err.print(f"{len(done)} jobs: {ok} ok, {len(done) - ok} failed\nwrote {escape(str(csv))}, "
-                  f"{escape(str(md))}, {escape(str(page))}", highlight=False, soft_wrap=True)
+        err.print(f"{len(done)} jobs: {ok} ok, {len(done) - ok} failed\nwrote {escape(str(outdir))}/"
+                  f"{{{results.NAME},summary.md,summary.html}}", highlight=False, soft_wrap=True)
     return 0
 
 
-def _run_jobs(args, options, outdir: Path, record, todo: list, finished: int, total: int,
+def _batch(args, cluster, outdir: Path, jobs) -> tuple[int, dict, bool]:
+    """With OUTDIR locked: record the jobs, run those without a result, write results.csv
+    and the summary. Returns (jobs in the batch, results by id, interrupted)."""
+    from garment.batch import folders, results, store, summary
+
+    record = store.Store(outdir)
+    try:
+        if jobs is not None:
+            record.add_jobs(jobs)
+        folders.remove_temporaries(outdir)  # of a run that was killed
+        every = record.jobs()
+        finished = record.results()
+        todo = [j for j in (jobs if jobs is not None else every.values()) if j.id not in finished]
+        notes: dict[str, str] = {}  # job id -> why it has no thumbnail
+        interrupted = _run_jobs(args, cluster, outdir, record, todo, len(finished), len(every), notes)
+        done = record.results()
+        results.write(outdir, every, done)
+        summary.write(outdir, every, done, notes)
+    finally:
+        record.close()
+    return len(every), done, interrupted
+
+
+def _run_jobs(args, cluster, outdir: Path, record, todo: list, finished: int, total: int,
               notes: dict[str, str]) -> bool:
     """Run `todo` with the progress line, then draw the thumbnails earlier runs did not;
     True when stopped by a signal."""
@@ -86,7 +98,7 @@ def _run_jobs(args, options, outdir: Path, record, todo: list, finished: int, to
 
         try:
             if todo:
-                runner.run(todo, outdir, record, options, on_result=on_result, on_state=shown.state,
+                runner.run(todo, outdir, record, cluster, on_result=on_result, on_state=shown.state,
                            on_retry=shown.retry, stopped=lambda: stop.signal is not None)
             for job_id in [] if args.no_thumbnails else record.results():
                 if job_id not in notes and not (outdir / job_id / thumbnails.NAME).exists():
@@ -209,7 +221,7 @@ def register(sub) -> None:
     b.add_argument("--address", metavar="auto|ray://HOST:PORT",
                    help="join this Ray cluster (default: start a local Ray instance)")
     b.add_argument("--threads-per-job", type=int, default=1, metavar="N",
-                   help="CPUs each job uses and asks Ray for (default 1: throughput is best with one job per core)")
+                   help="CPUs each job uses and asks Ray for (default 1: one job per core)")
     b.add_argument("--memory-per-job", default="2G", metavar="SIZE",
                    help="memory each job asks Ray for, e.g. 2G, 512M (default 2G; 0: none reserved)")
     b.add_argument("--workers", type=int, metavar="N", help="at most N jobs at once (default: as many as fit)")

@@ -82,6 +82,7 @@ def test_bad_manifest_exits_2_before_anything_runs(tmp_path, capsys, text, messa
     (["MANIFEST", "--memory-per-job", "lots"], "--memory-per-job: not an amount of memory"),
     (["MANIFEST", "--timeout", "0"], "--timeout: must be > 0"),
     (["MANIFEST", "--threads-per-job", "0"], "--threads-per-job: must be in [1, 1024], got 0"),
+    (["MANIFEST", "--address", "127.0.0.1:1"], "--address 127.0.0.1:1: nothing answers there"),
 ])
 def test_bad_command_line_exits_2(tmp_path, capsys, monkeypatch, args, message):
     manifest_path = write_batch(tmp_path, {"ok": {"behaviour": "ok"}})
