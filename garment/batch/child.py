@@ -44,7 +44,9 @@ def run(spec: dict) -> dict:
     except InputError as e:  # bad input: its own category, not retried
         return {"status": getattr(e, "category", None) or "input", "error": printable(e)}
     except Exception:  # a bug or an unexpected failure: would raise again, not retried
-        return {"status": "crash", "exception": True, "error": printable(traceback.format_exc(), 4000)}
+        text = traceback.format_exc()
+        print(text, file=sys.stderr, flush=True)  # whole, in job.log
+        return {"status": "crash", "exception": True, "error": printable(text, 4000)}
 
 
 def _die_with_parent() -> None:
