@@ -41,6 +41,8 @@ def run(spec: dict) -> dict:
             return {"status": "crash", "exception": True,
                     "error": f"{spec['target']} returned {printable(report, 200)}, not a report with a status"}
         return {"status": report["status"], "report": report}
+    except KeyboardInterrupt:  # stopped at the timeout (task.py reports it)
+        return {"status": "timeout", "error": "stopped by SIGTERM"}
     except InputError as e:  # bad input: its own category, not retried
         return {"status": getattr(e, "category", None) or "input", "error": printable(e)}
     except Exception:  # a bug or an unexpected failure: would raise again, not retried
@@ -60,8 +62,18 @@ def _die_with_parent() -> None:
         os._exit(1)  # the parent died before prctl took effect
 
 
+def _stop_on_sigterm() -> None:
+    """SIGTERM (the timeout) as KeyboardInterrupt, as `garment` does, so the job's
+    `finally` blocks remove its temporary files."""
+    def stop(signum, _frame):
+        raise KeyboardInterrupt(signal.Signals(signum).name)
+
+    signal.signal(signal.SIGTERM, stop)
+
+
 def main() -> None:
     _die_with_parent()
+    _stop_on_sigterm()
     spec = json.load(sys.stdin)
     result = run(spec)
     tmp = Path(f".{RESULT}.tmp")

@@ -3,7 +3,8 @@ the job's temporary folder, under the wall-clock timeout, and hands back its res
 
 The job gets a process of its own so that a native crash, a leak or the OOM killer
 takes only that process, and a timeout is a kill of its process group, whatever the job
-is doing (inside numba or CHOLMOD a Python-level timeout would never fire). The Ray
+is doing (inside numba or CHOLMOD a Python-level timeout would never fire): SIGTERM first,
+so the job can clean up, SIGKILL GRACE_S later. The Ray
 worker that runs this task stays light and is reused.
 
 Outcome: the job's status; `timeout` when killed at the limit; `crash` when the process
@@ -28,6 +29,7 @@ from . import folders
 from .child import PARENT, RESULT
 
 LOG_TAIL = 1500  # characters of job.log quoted in a crash's error
+GRACE_S = 10.0  # from SIGTERM to SIGKILL at the timeout: native code runs on until it returns
 
 
 def run_attempt(spec: dict) -> dict:
@@ -51,9 +53,9 @@ def run_attempt(spec: dict) -> dict:
             proc.wait(timeout=spec["timeout_s"])
         except subprocess.TimeoutExpired:
             timed_out = True
-            _kill_group(proc)  # the job and anything it started
+            _stop(proc)
         except BaseException:
-            _kill_group(proc)
+            _kill_group(proc, signal.SIGKILL)
             raise
         code = proc.wait()
     wall = time.monotonic() - start
@@ -62,6 +64,7 @@ def run_attempt(spec: dict) -> dict:
     result_file = tmp / RESULT
     if timed_out:
         out.update(status="timeout", error=f"stopped after the {spec['timeout_s']:g} s timeout (--timeout)")
+        _mark_report(tmp / folders.REPORT, out)  # a report the job wrote while stopping says so
     elif result_file.exists():
         result = json.loads(result_file.read_text())
         out.update(status=result["status"], report=result.get("report"), error=result.get("error"))
@@ -100,11 +103,31 @@ def _environment(spec: dict) -> dict:
     return env
 
 
-def _kill_group(proc: subprocess.Popen) -> None:
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGTERM to the job's process group (child.py turns it into KeyboardInterrupt, so the
+    job's own clean-up runs), SIGKILL after GRACE_S if it has not ended."""
+    _kill_group(proc, signal.SIGTERM)
     try:
-        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=GRACE_S)
+    except subprocess.TimeoutExpired:
+        pass
+    _kill_group(proc, signal.SIGKILL)  # anything it started that is still there
+
+
+def _kill_group(proc: subprocess.Popen, sig: int) -> None:
+    try:
+        os.killpg(proc.pid, sig)
     except (ProcessLookupError, PermissionError):
         pass
+
+
+def _mark_report(path: Path, out: dict) -> None:
+    try:
+        report = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return
+    if isinstance(report, dict):
+        folders.write_report(path.parent, {**report, "status": out["status"], "error": out["error"]})
 
 
 def _how(code: int) -> str:

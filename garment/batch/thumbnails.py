@@ -4,6 +4,7 @@ OSMesa: no display). Drawn in the driver as results arrive, while the jobs run."
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -13,10 +14,22 @@ from sim.files import atomic_write
 NAME = "thumbnail.png"
 MESHES = ("garment.obj", "garment.ply")
 SIZE = (256, 256)
+REPORT = "report.json"
 
 
 def mesh_of(folder: Path) -> Path | None:
     return next((folder / m for m in MESHES if (folder / m).is_file()), None)
+
+
+def up_axis(folder: Path) -> tuple[float, float, float]:
+    """The mesh's vertical: +y when the job's report says the body file is Y-up
+    (garment.dress writes the mesh in the body file's axes, `body_frame`: "cm, Y-up"),
+    else +z, the simulator's frame."""
+    try:
+        frame = str(json.loads((folder / REPORT).read_text()).get("body_frame", ""))
+    except (OSError, ValueError, AttributeError):
+        frame = ""
+    return (0.0, 1.0, 0.0) if "y-up" in frame.lower() else (0.0, 0.0, 1.0)
 
 
 def render(folder: Path) -> Path | None:
@@ -33,9 +46,10 @@ def render(folder: Path) -> Path | None:
     empty = np.zeros((0, 2))
     topology = MeshTopology("garment", faces.astype(np.int32), empty, empty, "cloth")
     bounds = np.array([vertices.min(axis=0), vertices.max(axis=0)])
-    # Scene frame: z up (garment.io.bodies turns Y-up bodies); seen from the front, a little above.
-    renderer = SceneRenderer([topology], bounds, RenderOptions(size=SIZE, azimuth=-90.0, elevation=10.0),
-                             first={"garment": vertices})
+    # Seen from the front (+z of a Y-up GarmentCode body, -y of the simulator's Z-up frame),
+    # a little from above.
+    options = RenderOptions(size=SIZE, azimuth=-90.0, elevation=10.0, up=up_axis(folder))
+    renderer = SceneRenderer([topology], bounds, options, first={"garment": vertices})
     try:
         image = renderer.image({"garment": vertices})
     finally:

@@ -74,3 +74,11 @@ def test_the_live_line_fits_80_columns():
     lines = console.export_text().splitlines()
     assert "999/1000 done" in lines[0] and "16 running, 100 failed" in lines[0] and "ETA" in lines[0]
     assert max(len(line.rstrip()) for line in lines) <= WIDTH
+
+
+def test_thumbnails_stand_up_in_the_body_files_axes(tmp_path):
+    from garment.batch import thumbnails
+
+    assert thumbnails.up_axis(tmp_path) == (0.0, 0.0, 1.0)  # no report: the simulator's Z-up
+    (tmp_path / "report.json").write_text(json.dumps({"status": "ok", "body_frame": "cm, Y-up"}))
+    assert thumbnails.up_axis(tmp_path) == (0.0, 1.0, 0.0)
