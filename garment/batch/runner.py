@@ -45,7 +45,8 @@ class Options:
     """job: "module:function" run for each job; address: None (start Ray here), "auto"
     or "ray://host:port"; threads: CPUs per job; memory_bytes: memory per job (None: not
     reserved); workers: cap on jobs at once (None: as many as fit); timeout_s: wall
-    clock per attempt; retries: extra attempts after a worker died."""
+    clock per attempt; retries: extra attempts after a worker died; paths: folders the
+    job's process imports from first (the driver's project root and working folder)."""
 
     job: str = DEFAULT_JOB
     address: str | None = None

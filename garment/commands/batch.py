@@ -69,7 +69,7 @@ def _batch(args, cluster, outdir: Path, jobs) -> tuple[int, dict, bool]:
         finished = record.results()
         todo = [j for j in (jobs if jobs is not None else every.values()) if j.id not in finished]
         notes: dict[str, str] = {}  # job id -> why it has no thumbnail
-        interrupted = _run_jobs(args, cluster, outdir, record, todo, len(finished), len(every), notes)
+        interrupted = _run_jobs(args, cluster, outdir, record, every, todo, len(finished), notes)
         done = record.results()
         results.write(outdir, every, done)
         summary.write(outdir, every, done, notes)
@@ -78,7 +78,7 @@ def _batch(args, cluster, outdir: Path, jobs) -> tuple[int, dict, bool]:
     return len(every), done, interrupted
 
 
-def _run_jobs(args, cluster, outdir: Path, record, todo: list, finished: int, total: int,
+def _run_jobs(args, cluster, outdir: Path, record, every: dict, todo: list, finished: int,
               notes: dict[str, str]) -> bool:
     """Run `todo` with the progress line, then draw the thumbnails earlier runs did not;
     True when stopped by a signal."""
@@ -88,13 +88,13 @@ def _run_jobs(args, cluster, outdir: Path, record, todo: list, finished: int, to
     interrupted = False
     with _StopRequests() as stop, BatchProgress(len(todo), args.quiet, err) as shown:
         if finished:
-            shown.note(f"resuming: {finished} of {total} jobs already finished, {len(todo)} to run")
+            shown.note(f"resuming: {finished} of {len(every)} jobs already finished, {len(todo)} to run")
 
         def on_result(result: dict) -> None:
             shown.finished(result)
             if not args.no_thumbnails and not stop.signal:
                 with stop.deferred():
-                    _thumbnail(outdir / result["id"], notes)
+                    _thumbnail(outdir / result["id"], every[result["id"]].body, notes)
 
         try:
             if todo:
@@ -103,7 +103,7 @@ def _run_jobs(args, cluster, outdir: Path, record, todo: list, finished: int, to
             for job_id in [] if args.no_thumbnails else record.results():
                 if job_id not in notes and not (outdir / job_id / thumbnails.NAME).exists():
                     with stop.deferred():
-                        _thumbnail(outdir / job_id, notes)
+                        _thumbnail(outdir / job_id, every[job_id].body, notes)
         except KeyboardInterrupt:
             interrupted = True
     return interrupted or stop.signal is not None  # even one a library swallowed
@@ -190,12 +190,12 @@ class _StopRequests:
         return False
 
 
-def _thumbnail(folder: Path, notes: dict[str, str]) -> None:
+def _thumbnail(folder: Path, body: Path | None, notes: dict[str, str]) -> None:
     """Draw the job's thumbnail; a failure is noted for the summary, never raised."""
     from garment.batch import thumbnails
 
     try:
-        thumbnails.render(folder)
+        thumbnails.render(folder, body)
     except KeyboardInterrupt:
         raise
     except BaseException as e:  # a renderer problem must not stop the batch
