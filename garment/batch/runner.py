@@ -190,6 +190,8 @@ def _connect(ray, options: Options) -> bool:
     if ray.is_initialized():
         return False
     quiet = {"include_dashboard": False, "log_to_driver": False, "logging_level": logging.ERROR}
+    # Ray reports usage to its authors over the network unless told not to; a user can opt in.
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     # ray.init makes SIGTERM exit at once (sys.exit); keep the command's: stop like Ctrl-C.
     sigterm = signal.getsignal(signal.SIGTERM)
     try:

@@ -83,7 +83,7 @@ def write(outdir: Path, jobs: dict[str, Job], results: dict[str, dict], notes: d
 def _headline(jobs, results) -> str:
     done = sum(i in jobs for i in results)
     ok = sum(r["status"] == "ok" for i, r in results.items() if i in jobs)
-    text = f"{len(jobs)} jobs: {done} finished, {ok} ok, {done - ok} failed"
+    text = f"{jobs_text(len(jobs))}: {done} finished, {ok} ok, {done - ok} failed"
     if done < len(jobs):
         text += f"; {len(jobs) - done} not run yet (run again with --resume)"
     return text
@@ -135,6 +135,10 @@ def _html(outdir, head, parts, pictures) -> str:
         css = "" if status == "ok" else " class='fail'"
         out.append(f"<figure>{picture}<figcaption{css}>{e(job_id)}: {e(status)}</figcaption></figure>")
     return "\n".join(out) + "\n"
+
+
+def jobs_text(n: int) -> str:
+    return f"{n} job" if n == 1 else f"{n} jobs"
 
 
 def _percent(rs: list[dict]) -> str:

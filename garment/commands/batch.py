@@ -29,6 +29,7 @@ from .options import number_option
 
 def run(args) -> int:
     from garment.batch import folders, results, runner, store
+    from garment.batch.summary import jobs_text
 
     options = _options(args)
     outdir = output_folder(args.output, "the output folder (-o)").absolute()
@@ -46,11 +47,11 @@ def run(args) -> int:
         with folders.locked(outdir):
             total, done, interrupted = _batch(args, cluster, outdir, jobs)
     if interrupted:
-        raise Interrupted(f"{len(done)} of {total} jobs finished (kept in {outdir}); "
+        raise Interrupted(f"{len(done)} of {jobs_text(total)} finished (kept in {outdir}); "
                           f"run the same command with --resume to run the rest")
     if not args.quiet:
         ok = sum(r["status"] == "ok" for r in done.values())
-        err.print(f"{len(done)} jobs: {ok} ok, {len(done) - ok} failed\nwrote {escape(str(outdir))}/"
+        err.print(f"{jobs_text(len(done))}: {ok} ok, {len(done) - ok} failed\nwrote {escape(str(outdir))}/"
                   f"{{{results.NAME},summary.md,summary.html}}", highlight=False, soft_wrap=True)
     return 0
 
@@ -84,11 +85,12 @@ def _run_jobs(args, cluster, outdir: Path, record, every: dict, todo: list, fini
     True when stopped by a signal."""
     from garment.batch import runner, thumbnails
     from garment.batch.progress import BatchProgress
+    from garment.batch.summary import jobs_text
 
     interrupted = False
     with _StopRequests() as stop, BatchProgress(len(todo), args.quiet, err) as shown:
         if finished:
-            shown.note(f"resuming: {finished} of {len(every)} jobs already finished, {len(todo)} to run")
+            shown.note(f"resuming: {finished} of {jobs_text(len(every))} already finished, {len(todo)} to run")
 
         def on_result(result: dict) -> None:
             shown.finished(result)

@@ -25,6 +25,7 @@ from .cases import JOB, finished_ids, ledger_lines, output_hashes, read_results,
 def ray_address():
     import ray
 
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     sigterm = signal.getsignal(signal.SIGTERM)  # ray.init replaces it with sys.exit
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False,
              logging_level=logging.ERROR, runtime_env={"env_vars": {"PYTHONPATH": str(ROOT)}})
