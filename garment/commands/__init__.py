@@ -4,4 +4,4 @@ sets `func(args) -> exit status`. To add a command, add a module and list it in 
 Every command module is imported to build the parser, so each imports the simulator,
 Rerun and PyVista inside the function that runs it: `garment --help` stays instant."""
 
-COMMANDS = ("simulate", "dress", "demo", "bench", "inspect", "view", "conform")
+COMMANDS = ("simulate", "dress", "demo", "bench", "inspect", "view", "conform", "batch")
