@@ -93,6 +93,19 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
     return {k: np.array(v) for k, v in found.items()}
 
 
+def folded(patch, per_span: int = 4) -> bool:
+    """Whether the patch's map from parameters to its flat rest shape folds over anywhere:
+    a triangle of a fine grid (`per_span` per knot span) turned over. The Jacobian checks
+    of conforming look at quadrature points only; a narrow strap can fold between them."""
+    n, m = patch.shape
+    res = (per_span * (n - 2) + 1, per_span * (m - 2) + 1)
+    W = interpolation_matrix(*sample_grid(n, m, res), n, m, 0, n * m)
+    X = W @ patch.rest.reshape(-1, 2)
+    T = X[grid_faces(*res)]
+    area = (T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1]) - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0])
+    return bool((area <= 0).any())
+
+
 def _middles(patches) -> np.ndarray:
     """(P, 3) the point of each patch's control net at its middle."""
     return np.array([p.world[p.shape[0] // 2, p.shape[1] // 2] for p in patches])
@@ -110,6 +123,14 @@ class _Body:
         self.normals = n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None] * (1.0 if volume >= 0 else -1.0)
         self.centres = T.mean(1)
         self.tree = cKDTree(self.centres)
+
+    def inside(self, points: np.ndarray, k: int = 8) -> np.ndarray:
+        """(P,) points behind all of their k nearest triangles: inside the body (one
+        triangle alone misjudges creases such as the crotch or an armpit)."""
+        k = min(k, len(self.centres))
+        idx = self.tree.query(points, k=k)[1].reshape(len(points), k)
+        d = np.einsum("pkd,pkd->pk", points[:, None] - self.centres[idx], self.normals[idx])
+        return (d < 0).all(1)
 
     def side(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(outward unit normals of the nearest body triangles (P, 3), signed distances
@@ -166,7 +187,9 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
                                  f"{_where(pts)}): its conformed surface is not a valid start; try another knot span")
         push = np.zeros(len(patches), bool)
         if body is not None:  # a panel wholly inside the body crosses nothing, yet must come out
-            push |= body.side(_middles(patches))[1] < 0.0
+            inside = body.inside(_middles(patches))
+            push |= inside
+            hits.update({(-1, int(k)): _middles(patches)[k][None] for k in np.flatnonzero(inside)})
         if not hits and not push.any():
             break
         far = _distance_to_body(patches, tree)

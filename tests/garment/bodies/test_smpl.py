@@ -4,6 +4,7 @@ correctives and skinning against values computed by hand; the .pkl reader; bad f
 
 from __future__ import annotations
 
+import os
 import pickle
 import sys
 import types
@@ -137,10 +138,10 @@ def test_official_pkl_layout_reads_like_the_npz(tmp_path, files, protocol):
 def test_pkl_files_cannot_run_code(tmp_path):
     class Evil:
         def __reduce__(self):
-            return (print, ("owned",))
+            return (os.system, ("true",))
 
     (tmp_path / "evil.pkl").write_bytes(pickle.dumps({"v_template": Evil()}))
-    with pytest.raises(InputError, match="refers to builtins.print.*convert it to .npz"):
+    with pytest.raises(InputError, match=r"refers to (posix|os)\.system.*convert it to .npz"):
         read_model(tmp_path / "evil.pkl")
     (tmp_path / "list.pkl").write_bytes(pickle.dumps([1, 2]))
     with pytest.raises(InputError, match="holds a list, not an SMPL model"):
