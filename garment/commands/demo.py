@@ -1,32 +1,73 @@
-"""`garment demo`: conform the bundled poncho, sew it onto the dancing Rumba body and
-simulate a short clip -> out/demo.rrd and out/demo.mp4 (assets/scenes/poncho_rumba.toml)."""
+"""`garment demo`: the CC0 MakeHuman body dances two forward jumps of CMU motion capture
+01_01 in a GarmentCode skirt of 9 panels, dressed on its bind pose by `garment dress`'s
+mechanism (garment/dress/) -> out/demo.rrd, out/demo.mp4 and out/demo.usd.
+
+During the 1 s pre-roll the body holds its A-pose, slimmed: the seams close weightless in
+the first half, the body grows back in the second and blends into the first motion frame
+over its last 0.2 s; then gravity ramps in as the dance starts."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from .simulate import override_frames, print_how_to_open, simulate
+from .simulate import print_how_to_open, simulate
 
-SCENE = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "poncho_rumba.toml"
+ROOT = Path(__file__).resolve().parents[2]
+PATTERN = ROOT / "assets" / "garments" / "skirt_panels.json"
+PREROLL = 1.0  # s
+SECONDS = 3.0  # of the clip's lively stretch (garment.io.rigged.LIVELY)
+
+
+def body_table() -> dict:
+    """The dancing body as a scene [[obstacle]] table (docs/bodies.md)."""
+    from garment.io.rigged import LIVELY, MAKEHUMAN_CMU, MAKEHUMAN_JOINTS
+
+    d = MAKEHUMAN_CMU
+    start = LIVELY[0] / 120.0  # the BVH is 120 fps
+    return {"name": "body", "scale": 0.1, "up": "y", "blend": 0.2,
+            "skin": {"mesh": str(d / "body.obj"), "group": "body", "rig": str(d / "rig.cmu_mb.json"),
+                     "weights": str(d / "weights.cmu_mb.json"), "motion": str(d / "01_01.bvh"),
+                     "joints": [list(kv) for kv in MAKEHUMAN_JOINTS.items()],
+                     "start": start, "end": start + SECONDS}}
+
+
+def demo_scene(out: Path, frames: int | None):
+    """Place the skirt around the body's bind pose and build the scene."""
+    from garment.dress.frame import BodyFrame
+    from garment.dress.job import DressOptions, dress_scene, place_garment
+    from garment.io.rigged import LIVELY, makehuman_cmu
+
+    options = DressOptions()
+    bind = makehuman_cmu(stop=LIVELY[0] + 1, fps=25.0, blend=0.04)  # its lead-in starts at the A-pose
+    folder = out.with_suffix("")
+    folder.mkdir(parents=True, exist_ok=True)
+    place_garment(PATTERN, BodyFrame(1.0, "z", "m"), bind.frames[0], bind.faces, options, folder)
+    per_frame = options.dt * options.steps_per_frame
+    frames = frames or int(round((PREROLL + SECONDS) / per_frame))
+    return dress_scene(folder / "patches.json", body_table(), options, preroll=PREROLL, frames=frames, name="demo")
 
 
 def run(args) -> int:
-    from garment.scene import load_scene
+    from garment.io.usd import write_usd
+    from viz.recording import load_recording
     from viz.render import RenderOptions
 
-    scene = override_frames(load_scene(SCENE), args.frames)
+    scene = demo_scene(args.output, args.frames)
     video = None if args.no_video else args.output.with_suffix(".mp4")
     simulate(scene, args.output, None, quiet=args.quiet, render_to=video,
              render_options=RenderOptions(size=(640, 640), fps=25.0, azimuth=-70.0, elevation=10.0))
+    usd = args.output.with_suffix(".usd")
+    write_usd(load_recording(args.output), usd)
     print_how_to_open(args.output, video)
+    print(f"USD:       {usd.resolve()}")
     return 0
 
 
 def register(sub) -> None:
-    d = sub.add_parser("demo", help="sew the bundled poncho onto the dancing body and simulate a short clip")
+    d = sub.add_parser("demo", help="dress the bundled CC0 body in a 9-panel skirt and dance a CMU motion clip")
     d.add_argument("-o", "--output", type=Path, default=Path("out/demo.rrd"))
-    d.add_argument("--frames", type=int, default=75,
-                   help="frames of 0.04 s (the first 0.3 s are the pre-roll that sews the seams)")
+    d.add_argument("--frames", type=int,
+                   help="frames of 0.04 s (default: the 1 s pre-roll that sews the skirt, then 3 s of dance)")
     d.add_argument("--no-video", action="store_true", help="skip the MP4")
     d.add_argument("-q", "--quiet", action="store_true")
     d.set_defaults(func=run)

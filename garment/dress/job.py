@@ -35,7 +35,7 @@ from sim.files import atomic_write, output_folder
 
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..verify import frame_crossings, shared_vertices
-from .frame import BodyFrame, detect, pattern_up
+from .frame import BodyFrame, pattern_up, read_body
 from .layout import PlacementError, folded, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
@@ -100,9 +100,10 @@ def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -
     try:
         frame, body_V, body_F = _body(body)
         report["body_frame"] = frame.describe()
-        placed = _place(pattern, frame, body_V, body_F, options, outdir)
+        placed = place_garment(pattern, frame, body_V, body_F, options, outdir)
         report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.items()}
-        _simulate(_scene(outdir / "patches.json", body, frame, options), options, outdir, frame, report,
+        obstacle = {"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up}
+        _simulate(dress_scene(outdir / "patches.json", obstacle, options), options, outdir, frame, report,
                   start, on_frame)
     except DressFailure as e:
         report["status"], report["error"] = e.category, str(e)
@@ -117,14 +118,12 @@ def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -
 
 
 def _body(path: Path):
-    from ..io.meshfile import read_mesh
-
-    V, F = read_mesh(path, "body mesh")
-    frame = detect(V, path)
+    """The body's frame, and its vertices in the simulator's (Z-up metres) and faces."""
+    V, F, frame = read_body(path)
     return frame, to_scene_frame(V.astype(float), frame.scale, frame.up), F.astype(np.int32)
 
 
-def _place(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOptions, outdir: Path) -> dict:
+def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOptions, outdir: Path) -> dict:
     """Conform the pattern, bring it into the body's frame, move crossing panels apart
     (against the body as shrunk at the start) and write outdir/patches.json."""
     from conform.pipeline import ConformOptions, conform_all
@@ -147,6 +146,8 @@ def _place(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOption
     up = pattern_up(pattern)
     for p in ps.patches:  # the pattern's frame to the simulator's (Z-up, metres)
         p.world = np.ascontiguousarray(to_scene_frame(p.world, 1.0, up))
+    if up == "y":
+        fit_to_body(ps.patches, body_V)
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, grow=(0.5 * options.sew_time,
                                                                                options.sew_time))
     layout = separate(ps.patches, shrunk.at(0.0), body_F)
@@ -154,21 +155,49 @@ def _place(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOption
     return layout.moved
 
 
-def _scene(patches: Path, body: Path, frame: BodyFrame, o: DressOptions):
+# GarmentCode lays its patterns out around its mean bodies: 1.72 m tall, feet on the
+# ground plane, centred on the vertical axis.
+GARMENTCODE_HEIGHT = 1.72
+
+
+def fit_to_body(patches, body_V: np.ndarray) -> None:
+    """Move each GarmentCode panel (rigidly, Z-up metres) to the same place relative to
+    this body as to GarmentCode's: its height above the feet scaled by the bodies' height
+    ratio, its horizontal offset kept about the body's centre. On GarmentCode's own bodies
+    this moves nothing by more than a few millimetres."""
+    lo, hi = body_V.min(0), body_V.max(0)
+    # The trunk's centre: the middle of the vertices between 45 and 65 % of the height
+    # (feet and hands held forward would pull a bounding box's centre off the trunk).
+    h = (body_V[:, 2] - lo[2]) / (hi[2] - lo[2])
+    trunk = body_V[(h > 0.45) & (h < 0.65)]
+    centre = 0.5 * (trunk.min(0) + trunk.max(0))
+    ratio = (hi[2] - lo[2]) / GARMENTCODE_HEIGHT
+    for p in patches:
+        c = p.world.reshape(-1, 3).mean(0)
+        target = np.array([centre[0] + c[0], centre[1] + c[1], lo[2] + ratio * c[2]])
+        p.world = p.world + (target - c)
+
+
+def dress_scene(patches: Path, obstacle: dict, o: DressOptions, preroll: float | None = None,
+                frames: int | None = None, name: str | None = None):
+    """The scene that sews and settles the placed garment `patches` on the body
+    `obstacle` (a scene [[obstacle]] table, which gets the inset) with the defaults `o`;
+    preroll: the bodies' pre-roll (default: the sewing time; a moving body starts after
+    it, and gravity starts with it: the body is whole only then); frames: default
+    max_time's worth."""
     from ..scene.read import parse_scene
 
     data = {
-        "scene": {"name": patches.parent.name or "dress"},
+        "scene": {"name": name or patches.parent.name or "dress"},
         "material": {"preset": o.material},
         "garment": [{"name": "garment", "source": str(patches.resolve()), "seam_stiffness": o.seam_stiffness}],
-        "obstacle": [{"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up,
-                      "inset": o.inset}],
+        "obstacle": [{**obstacle, "inset": o.inset}],
         # Weightless while sewing: the garment cannot drop off the shrunk body before its
         # seams hold and the body has grown back; then gravity ramps in.
-        "load": {"gravity": [0.0, 0.0, -9.81], "start": o.sew_time, "ramp": o.gravity_ramp},
+        "load": {"gravity": [0.0, 0.0, -9.81], "start": preroll or o.sew_time, "ramp": o.gravity_ramp},
         "contact": {"dhat": o.dhat, "kappa": "adaptive", "mu": o.mu},
-        "time": {"dt": o.dt, "steps_per_frame": o.steps_per_frame, "preroll": o.sew_time, "sewing": "quasistatic",
-                 "frames": int(np.ceil(o.max_time / (o.dt * o.steps_per_frame)))},
+        "time": {"dt": o.dt, "steps_per_frame": o.steps_per_frame, "preroll": preroll or o.sew_time,
+                 "sewing": "quasistatic", "frames": frames or int(np.ceil(o.max_time / (o.dt * o.steps_per_frame)))},
     }
     return parse_scene(data, patches.parent / "scene.toml")
 
