@@ -119,3 +119,17 @@ def test_dress_command_reports_bad_input(tmp_path, capsys):
     code = main(["dress", str(tube_skirt(tmp_path / "s.json")), "--body", str(body), "-o", str(tmp_path / "o")])
     assert code == 2
     assert "cannot tell the body's units" in capsys.readouterr().err
+
+
+def test_dress_command_refuses_unknown_settings_and_scenes_without_a_body(tmp_path, capsys):
+    pattern = tube_skirt(tmp_path / "s.json")
+    body = cylinder_body(tmp_path / "b.obj")
+    assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "knot=3"]) == 2
+    assert "unknown dress setting 'knot'" in capsys.readouterr().err
+    assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "dt=-1"]) == 2
+    assert "must be a positive number" in capsys.readouterr().err
+    scene = tmp_path / "scene.toml"
+    scene.write_text('[[garment]]\nsource = "s.json"\n')
+    assert main(["dress", str(scene), "-o", str(tmp_path / "o")]) == 2
+    assert "needs a scene with [[garment]] source and an [[obstacle]] mesh" in capsys.readouterr().err
+    assert not (tmp_path / "o" / "report.json").exists()
