@@ -178,6 +178,8 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
     tree = cKDTree(ref)
     offset = np.zeros(len(patches))
     pushes = np.zeros(len(patches), int)
+    decided = np.zeros(len(patches), bool)
+    body_tree = cKDTree(body_V) if body_V is not None else None
     for layout.rounds in range(int(MOST / STEP) + 1):
         hits = crossings(patches, body_V, body_F, surface)
         self_hits = {k: v for k, v in hits.items() if k[0] == k[1]}
@@ -193,9 +195,12 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
         if not hits and not push.any():
             break
         far = _distance_to_body(patches, tree)
-        for (a, b), _ in hits.items():
+        for (a, b), points in hits.items():
             if a == -1:
                 push[b] = True
+                if not decided[b]:  # which way is out, judged where it crosses
+                    normals[b] = _away_from_body(patches[b], normals[b], points, body_V, body_tree)
+                    decided[b] = True
             else:  # the outer of the two layers moves out
                 push[a if far[a] > far[b] else b] = True
         stuck = push & (offset >= MOST)
@@ -214,6 +219,20 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
             offset[k] += CLEARANCE
     layout.moved = {names[k]: float(offset[k]) for k in np.flatnonzero(offset)}
     return layout
+
+
+def _away_from_body(patch, normal: np.ndarray, points: np.ndarray, body_V: np.ndarray, tree: cKDTree,
+                    reach: float = 0.1) -> np.ndarray:
+    """The normal of a panel crossing the body, turned away from the body's bulk near the
+    crossings: a flat sleeve panel cutting through an arm leaves on the side where less
+    of the arm is (the nearest triangle to its middle may well be the torso's)."""
+    sample = points[:: max(1, len(points) // 64)]
+    near = np.unique(np.concatenate([np.asarray(i, int) for i in tree.query_ball_point(sample, reach)]))
+    if len(near) == 0:
+        return normal
+    middle = patch.world[patch.shape[0] // 2, patch.shape[1] // 2]
+    side = float(np.mean((body_V[near] - middle) @ normal))
+    return -normal if side > 0 else normal
 
 
 def _where(points: np.ndarray) -> str:
