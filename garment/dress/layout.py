@@ -222,7 +222,7 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
 
 
 def _away_from_body(patch, normal: np.ndarray, points: np.ndarray, body_V: np.ndarray, tree: cKDTree,
-                    reach: float = 0.1) -> np.ndarray:
+                    reach: float = 0.2) -> np.ndarray:
     """The normal of a panel crossing the body, turned away from the body's bulk near the
     crossings: a flat sleeve panel cutting through an arm leaves on the side where less
     of the arm is (the nearest triangle to its middle may well be the torso's)."""
