@@ -227,8 +227,9 @@ def register(sub) -> None:
     b.add_argument("--memory-per-job", default="2G", metavar="SIZE",
                    help="memory each job asks Ray for, e.g. 2G, 512M (default 2G; 0: none reserved)")
     b.add_argument("--workers", type=int, metavar="N", help="at most N jobs at once (default: as many as fit)")
-    b.add_argument("--timeout", type=float, default=600.0, metavar="S",
-                   help="wall-clock seconds per job attempt (default 600)")
+    b.add_argument("--timeout", type=float, default=660.0, metavar="S",
+                   help="wall-clock seconds per job attempt (default 660: `garment dress` stops itself at "
+                        "600 s and writes its report first)")
     b.add_argument("--retries", type=int, default=2, metavar="N",
                    help="run a job again up to N times when its process dies (default 2)")
     b.add_argument("--no-thumbnails", action="store_true", help="do not render a thumbnail per garment")
