@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import gc
 import os
+import pickle
+import signal
 import re
 import tempfile
 import uuid
@@ -248,8 +250,40 @@ def _salvage(path: Path, tmpdir: str) -> Path:
 
 def load_recording(path: str | os.PathLike) -> Recording:
     """Read the recording at `path`. Raises InputError if the file is missing or nothing
-    can be read from it; a damaged file that still yields data gives `damaged` set."""
+    can be read from it; a damaged file that still yields data gives `damaged` set.
+
+    Read in a forked child: on some damaged files rerun's reader aborts the whole process
+    (a Rust panic, SIGABRT; found by fuzzing), which is then a clean InputError here."""
     path = input_file(path, "Rerun recording (.rrd)")
+    if not hasattr(os, "fork"):
+        return _load(path)
+    with tempfile.TemporaryFile() as out:
+        pid = os.fork()
+        if pid == 0:  # the child: read, hand the result (or the error) back, never return
+            code = 0
+            try:
+                try:
+                    result = ("ok", _load(path))
+                except Exception as e:  # handed back and raised in the parent
+                    result = ("error", e)
+                pickle.dump(result, out)
+                out.flush()
+            except BaseException:
+                code = 1
+            os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        if os.WIFSIGNALED(status) or os.WEXITSTATUS(status) != 0:
+            why = (f"signal {signal.Signals(os.WTERMSIG(status)).name}" if os.WIFSIGNALED(status)
+                   else f"exit status {os.WEXITSTATUS(status)}")
+            raise InputError(f"{path}: not a readable Rerun recording (rerun's reader crashed on it: {why})")
+        out.seek(0)
+        kind, value = pickle.load(out)
+    if kind == "error":
+        raise value
+    return value
+
+
+def _load(path: Path) -> Recording:
     try:
         reader, store = _open(path)
         return _read(path, reader, store, None)
