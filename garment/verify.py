@@ -116,13 +116,17 @@ def shared_vertices(V, F) -> tuple[np.ndarray, np.ndarray]:
 
 
 
+def stack_meshes(meshes: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of several meshes as one, faces renumbered."""
+    off = np.cumsum([0] + [len(v) for v, _ in meshes])
+    return np.concatenate([v for v, _ in meshes]), np.concatenate([f + o for (_, f), o in zip(meshes, off)])
+
+
 def frame_crossings(cloth: list[tuple[np.ndarray, np.ndarray]], bodies: list[tuple[np.ndarray, np.ndarray]]
                     ) -> tuple[int, int]:
     """(cloth-body, cloth-cloth) intersecting triangle pairs of one frame: cloth and bodies
     are lists of (vertices, faces); -1, -1 when a cloth vertex is not finite."""
-    off = np.cumsum([0] + [len(v) for v, _ in cloth])
-    X = np.concatenate([v for v, _ in cloth])
-    T = np.concatenate([f + o for (_, f), o in zip(cloth, off)])
+    X, T = stack_meshes(cloth)
     if not np.isfinite(X).all():
         return -1, -1
     body = sum(len(intersecting_triangles(X, T, v, f)) for v, f in bodies)

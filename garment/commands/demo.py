@@ -35,13 +35,15 @@ def demo_scene(out: Path, frames: int | None):
     """Place the skirt around the body's bind pose and build the scene."""
     from garment.dress.frame import BodyFrame
     from garment.dress.job import DressOptions, dress_scene, place_garment
-    from garment.io.rigged import LIVELY, makehuman_cmu
+    from garment.io.rigged import MAKEHUMAN_CMU as d
+    from garment.io.rigged import read_makehuman, rig_to_scene
 
     options = DressOptions()
-    bind = makehuman_cmu(stop=LIVELY[0] + 1, fps=25.0, blend=0.04)  # its lead-in starts at the A-pose
+    bind = rig_to_scene(read_makehuman(d / "body.obj", "body", d / "rig.cmu_mb.json", d / "weights.cmu_mb.json"),
+                        0.1, "y", (0.0, 0.0, 0.0))  # the A-pose, in the scene's frame
     folder = out.with_suffix("")
     folder.mkdir(parents=True, exist_ok=True)
-    place_garment(PATTERN, BodyFrame(1.0, "z", "m"), bind.frames[0], bind.faces, options, folder)
+    place_garment(PATTERN, BodyFrame(1.0, "z", "m"), bind.vertices, bind.faces, options, folder)
     per_frame = options.dt * options.steps_per_frame
     frames = frames or int(round((PREROLL + SECONDS) / per_frame))
     return dress_scene(folder / "patches.json", body_table(), options, preroll=PREROLL, frames=frames, name="demo")

@@ -17,6 +17,7 @@ import numpy as np
 
 from sim.errors import InputError
 
+from ..io.garments import source_head
 from ..io.meshfile import read_mesh
 
 HEIGHT_M = (0.9, 2.4)  # a standing person, m
@@ -64,13 +65,4 @@ def read_body(path: Path) -> tuple[np.ndarray, np.ndarray, BodyFrame]:
 def pattern_up(source: Path) -> str:
     """The up axis of a garment source: GarmentCode patterns are Y-up; panel meshes and
     patch files are taken as Z-up (the simulator's frame)."""
-    return "y" if Path(source).suffix.lower() == ".json" and _is_garmentcode(source) else "z"
-
-
-def _is_garmentcode(path: Path) -> bool:
-    try:
-        with open(path, "rb") as f:
-            head = f.read(4096).decode("utf-8", "replace")
-    except OSError:
-        return False
-    return '"pattern"' in head
+    return "y" if Path(source).suffix.lower() == ".json" and '"pattern"' in source_head(source) else "z"

@@ -34,7 +34,7 @@ from sim.errors import InputError, SimulationError
 from sim.files import atomic_write, output_folder
 
 from ..io.bodies import from_scene_frame, to_scene_frame
-from ..verify import frame_crossings, shared_vertices
+from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
 from .layout import PlacementError, folded, separate
 
@@ -304,15 +304,8 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
 def _write_garment(sim, path: Path, frame: BodyFrame) -> None:
     """The settled garment as one mesh (sewn panels joined at their shared seam vertices),
     in the body file's units and axes."""
+    from viz.recording import export_mesh
+
     pos = sim.positions()
-    cloth = [m for m in sim.topologies() if m.kind == "cloth"]
-    off = np.cumsum([0] + [len(pos[m.name]) for m in cloth])
-    X = np.concatenate([pos[m.name] for m in cloth])
-    T = np.concatenate([m.faces + o for m, o in zip(cloth, off)])
-    X, T = shared_vertices(X, T)
-    X = from_scene_frame(X, frame.scale, frame.up)
-    with atomic_write(path) as tmp:
-        with open(tmp, "w") as f:
-            f.write("# garment dress: the settled garment, in the body file's units and axes\n")
-            np.savetxt(f, X, fmt="v %.9g %.9g %.9g")
-            np.savetxt(f, T + 1, fmt="f %d %d %d")
+    X, T = shared_vertices(*stack_meshes([(pos[m.name], m.faces) for m in sim.topologies() if m.kind == "cloth"]))
+    export_mesh(path, from_scene_frame(X, frame.scale, frame.up), T)

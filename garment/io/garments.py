@@ -74,10 +74,15 @@ def place_panels(panels, placement) -> None:
         p.world = world
 
 
-def _is_patch_file(path) -> bool:
+def source_head(path) -> str:
+    """The first 4 kB of a garment source as text, to tell its kind."""
     try:
         with open(path, "rb") as f:
-            head = f.read(4096).decode("utf-8", "replace")  # binary garbage: the reader says what it is
+            return f.read(4096).decode("utf-8", "replace")  # binary garbage: the reader says what it is
     except OSError as e:
         raise InputError(f"{path}: {e.strerror}") from None
+
+
+def _is_patch_file(path) -> bool:
+    head = source_head(path)
     return f'"{FORMAT}"' in head or '"format"' in head and FORMAT in head
