@@ -42,9 +42,9 @@ from .lift import lift
 from .mips import BoundaryFit, MipsOptions, det, rule_points
 from .mips import refine as mips_refine
 from .pleats import fold_panels, fold_span, pleat_faces
-from .quality import lift_strain, polyline_distance, report
+from .quality import folded, lift_strain, polyline_distance, report
 from .seams import map_seam, seam_hints, short_seams
-from .split import SPLIT_IMBALANCE, darts_of, imbalance, split_panel, split_seams
+from .split import SPLIT_IMBALANCE, darts_of, imbalance, necks_of, notches_of, split_panel, split_seams
 
 
 @dataclass
@@ -417,6 +417,25 @@ def plan_split(panel: Panel, outline: Outline, seams: list[PanelSeam], options: 
     return split_panel(panel, outline, darts)
 
 
+RESCUE_DEPTH = 2  # a piece of a rescued panel may be cut once more (a strap above a dart)
+NECK_LOBE = 4.0  # knot spans around the outline on either side of a neck, at least
+
+
+def rescue_splits(panel: Panel, outline: Outline, seams: list[PanelSeam], options: ConformOptions):
+    """Ways to cut a panel whose single patch fails (cannot be untangled, or folds over),
+    most natural first: at every dart and notch; else at one of its narrowest necks."""
+    darts = darts_of(panel.name, seams)
+    darts += notches_of(outline, darts)
+    if darts:
+        split = split_panel(panel, outline, darts)
+        if split is not None:
+            yield split
+    for neck in necks_of(outline, NECK_LOBE * options.knot_span):
+        split = split_panel(panel, outline, [neck])
+        if split is not None:
+            yield split
+
+
 # Peak memory of conforming one panel (garment conform, a 1 m square, peak resident set):
 # 0.45 GB at 53^2 control points, 0.92 GB at 103^2, 1.55 GB at 145^2, 2.78 GB at 203^2.
 CONFORM_BASE_BYTES = 0.3e9
@@ -506,36 +525,83 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         for piece in split.pieces:
             work.append((piece.panel, None, piece.avoid, panel, split))
 
-    # 2. Conform every panel and piece.
-    for panel, hints, avoid, parent, split in work:
+    # 2. Conform every panel and piece. A whole panel whose one patch cannot be untangled
+    # or folds over is cut (at its darts and notches, else at a neck) and its pieces tried.
+    def attempt(panel, hints, avoid, parent, split, seams):
         if split is not None:
-            hints, dart_points = seam_hints(panel.name, all_seams)
+            hints, dart_points = seam_hints(panel.name, seams)
             avoid = np.concatenate([np.asarray(avoid).reshape(-1, 2), dart_points])
-        origin = parent.name if parent is not None else panel.name  # whose placement it takes
+        origin = root_of(parent or panel)  # whose placement it takes
         opts = dataclasses.replace(options, corners=corners.get(panel.name, options.corners),
-                                   seam_span=spans.get(origin, options.seam_span))
-        short = short_seams(panel.name, all_seams, SHORT * options.knot_span)
+                                   seam_span=spans.get(origin.name, options.seam_span))
+        short = short_seams(panel.name, seams, SHORT * options.knot_span)
+        patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short,
+                                   warp=warps.get(origin.name))
+        rep["folds"] = folded(patch)
+        return patch, rep
+
+    roots = {}  # piece name -> the panel whose placement it takes
+
+    def root_of(panel):
+        return roots.get(panel.name, panel)
+
+    def conform_tree(panel, hints, avoid, parent, split, seams, depth):
+        """[(piece, patch, report, split)] and the seams, the panel cut as needed."""
+        error = None
         try:
-            patch, rep = conform_panel(panel, opts, hints, avoid, lift_from=parent, short_seams=short,
-                                       warp=warps.get(origin))
+            patch, rep = attempt(panel, hints, avoid, parent, split, seams)
+            if not rep["folds"]:
+                return [(panel, patch, rep, split)], seams, []
+        except PanelError as e:
+            patch, error = None, e
+        if depth < RESCUE_DEPTH and options.split != "never" and corners.get(panel.name) is None:
+            outline = extract_outline(panel)
+            for rescue in rescue_splits(panel, outline, seams, options):
+                trial = split_seams(seams, rescue, tolerance_for(outline, options))
+                done, ok = [], True
+                roots.update({piece.panel.name: root_of(panel) for piece in rescue.pieces})
+                for piece in rescue.pieces:
+                    try:
+                        parts, trial, more = conform_tree(piece.panel, None, piece.avoid, root_of(panel), rescue,
+                                                          trial, depth + 1)
+                    except PanelError:
+                        ok = False
+                        break
+                    done += parts
+                    ok = ok and not any(r["folds"] for _, _, r, _ in parts)
+                    if not ok:
+                        break
+                if ok:
+                    return done, trial, [rescue] + more
+        if error is not None:
+            raise error
+        return [(panel, patch, rep, split)], seams, []  # folded: kept, flagged in its report
+
+    for panel, hints, avoid, parent, split in work:
+        try:
+            parts, all_seams, rescues = conform_tree(panel, hints, avoid, parent, split, all_seams, 0)
         except PanelError as e:
             failures[panel.name] = str(e)
             if on_panel:
                 on_panel(panel, None, e)
             continue
-        prov[panel.name] = rep.pop("provenance")
-        if split is not None:
-            prov[panel.name].update(piece_provenance(split, panel.name))
-        if origin in warps:
-            rep["pleat_folds"] = int(warps[origin].fold.lines.size)
-        if origin in spans:
-            rep["pleat_span_mm"] = round(1e3 * spans[origin], 3)
-        if flat.get(origin):
-            rep["pleats_left_flat"] = flat[origin]
-        patches[panel.name], quality[panel.name] = patch, rep
-        tol[panel.name] = 2e-3 * rep["tolerance_mm"]  # twice the fit tolerance, metres
-        if on_panel:
-            on_panel(panel, rep, None)
+        for rescue in rescues:
+            splits[rescue.parent.name] = rescue
+        for piece, patch, rep, sp in parts:
+            origin = root_of(parent or piece)
+            prov[piece.name] = rep.pop("provenance")
+            if sp is not None:
+                prov[piece.name].update(piece_provenance(sp, piece.name))
+            if origin.name in warps:
+                rep["pleat_folds"] = int(warps[origin.name].fold.lines.size)
+            if origin.name in spans:
+                rep["pleat_span_mm"] = round(1e3 * spans[origin.name], 3)
+            if flat.get(origin.name):
+                rep["pleats_left_flat"] = flat[origin.name]
+            patches[piece.name], quality[piece.name] = patch, rep
+            tol[piece.name] = 2e-3 * rep["tolerance_mm"]  # twice the fit tolerance, metres
+            if on_panel:
+                on_panel(piece, rep, None)
     mapped = [map_seam(s, patches, tol) for s in all_seams if s.panel_a in patches and s.panel_b in patches]
     if warps:
         faces = {name: tucks for w in warps.values() for name, tucks in pleat_faces(w.fold, all_seams).items()}

@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from sim.rest import point_data
 from sim.bspline import basis_matrix
+from sim.embedding import grid_faces, interpolation_matrix, sample_grid
 
 from .boundary import Outline
 from .curve_fit import evaluate
@@ -146,3 +147,16 @@ def lift_strain(X: np.ndarray, C: np.ndarray, per_span: int = 4) -> float:
         dw = np.linalg.norm(np.diff(W, axis=axis), axis=-1)
         worst = max(worst, float(np.abs(dw / ds - 1.0).max()))
     return worst
+
+
+def folded(patch, per_span: int = 4) -> bool:
+    """Whether the patch's map from parameters to its flat rest shape folds over anywhere:
+    a triangle of a fine grid (`per_span` per knot span) turned over. The Jacobian checks
+    look at quadrature points only; a narrow strap can fold between them."""
+    n, m = patch.shape
+    res = (per_span * (n - 2) + 1, per_span * (m - 2) + 1)
+    W = interpolation_matrix(*sample_grid(n, m, res), n, m, 0, n * m)
+    X = W @ patch.rest.reshape(-1, 2)
+    T = X[grid_faces(*res)]
+    area = (T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1]) - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0])
+    return bool((area <= 0).any())

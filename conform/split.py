@@ -40,12 +40,15 @@ STITCH_SPACING = 0.01  # samples along a cut seam, metres (as GarmentCode stitch
 
 @dataclass
 class Dart:
-    """A dart of a panel: its seam, tip (rest position, m) and unit axis (mouth -> tip)."""
+    """Where a cut starts: a dart of a panel (its seam, tip (rest position, m) and unit axis
+    (mouth -> tip)), a notch in the outline (a dart or slit no seam declares) or one end
+    of a neck (axis: towards the other end)."""
 
     seam: str
     tip: np.ndarray
     axis: np.ndarray
-    depth: float  # mouth midpoint to tip, m
+    depth: float  # mouth midpoint to tip, m (a neck: its width)
+    kind: str = "dart"  # "dart", "notch" or "neck"
 
 
 @dataclass
@@ -58,6 +61,7 @@ class Cut:
     p0: np.ndarray
     p1: np.ndarray
     dart: str
+    kind: str = "dart"
 
     @property
     def length(self) -> float:
@@ -131,6 +135,80 @@ def darts_of(panel_name: str, seams: list[PanelSeam]) -> list[Dart]:
     return out
 
 
+NOTCH_OPENING = np.radians(60.0)  # legs closer than this (seen LEG samples out): a notch
+NOTCH_LEG = 3
+NECK_RATIO = 0.35  # a neck: a chord shorter than this fraction of the outline around its lobe
+
+
+def notches_of(outline: Outline, known: list[Dart] = ()) -> list[Dart]:
+    """Notches of the outline that no dart declares: loop points where the outline turns
+    back on itself into the panel (a slit for a godet, a dart sewn some other way). The
+    axis points from the notch's mouth to its tip."""
+    P = outline.points
+    B = len(outline)
+    w = NOTCH_LEG
+    if B < 2 * w + 3:
+        return []
+    u1 = np.roll(P, w, axis=0) - P  # towards the point w samples back
+    u2 = np.roll(P, -w, axis=0) - P
+    u1 /= np.maximum(np.linalg.norm(u1, axis=1), 1e-300)[:, None]
+    u2 /= np.maximum(np.linalg.norm(u2, axis=1), 1e-300)[:, None]
+    opening = np.arccos(np.clip((u1 * u2).sum(1), -1.0, 1.0))
+    reflex = (u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]) > 0  # CCW loop: the tip points inwards
+    spacing = float(np.median(np.diff(outline.s)))
+    out = []
+    for k in np.nonzero(reflex & (opening < NOTCH_OPENING))[0]:
+        if opening[k] > opening[(k - 1) % B] or opening[k] > opening[(k + 1) % B]:
+            continue  # the sharpest point of the notch is its tip
+        if any(np.linalg.norm(P[k] - d.tip) < 2 * w * spacing for d in known):
+            continue
+        axis = -(u1[k] + u2[k])
+        out.append(Dart(f"notch{len(out)}", P[k].copy(), axis / np.linalg.norm(axis), w * spacing, "notch"))
+    return out
+
+
+def necks_of(outline: Outline, min_arc: float, count: int = 3) -> list[Dart]:
+    """The narrowest necks of the outline, best first: chords inside the panel much shorter
+    than the outline around the lobe they cut off (a strap on a torso panel), each lobe
+    at least min_arc around. Returned as cut starts (one end, axis to the other)."""
+    P = outline.points
+    B = len(outline)
+    stride = max(1, B // 400)
+    idx = np.arange(0, B, stride)
+    Q, s = P[idx], outline.s[idx]
+    per = outline.perimeter
+    chord = np.linalg.norm(Q[:, None] - Q[None], axis=-1)
+    arc = np.abs(s[:, None] - s[None])
+    arc = np.minimum(arc, per - arc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        score = np.where((arc >= min_arc) & (chord > 0), chord / arc, np.inf)
+    score[np.tril_indices(len(idx))] = np.inf
+    out = []
+    for flat in np.argsort(score, axis=None):
+        i, j = np.unravel_index(flat, score.shape)
+        if not score[i, j] < NECK_RATIO or len(out) == count:
+            break
+        a, b = Q[i], Q[j]
+        if any(min(np.linalg.norm(a - d.tip), np.linalg.norm(b - d.tip)) < 0.5 * min_arc for d in out):
+            continue  # the same neck again
+        if not _inside(P, 0.5 * (a + b)) or _crosses_outline(P, a, b):
+            continue
+        out.append(Dart(f"neck{len(out)}", a.copy(), (b - a) / chord[i, j], float(chord[i, j]), "neck"))
+    return out
+
+
+def _crosses_outline(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the segment a-b crosses the closed polygon P anywhere but at its ends."""
+    q0, q1 = P, np.roll(P, -1, axis=0)
+
+    def orient(p, r, t):
+        return (r[..., 0] - p[..., 0]) * (t[..., 1] - p[..., 1]) - (r[..., 1] - p[..., 1]) * (t[..., 0] - p[..., 0])
+
+    d1, d2 = orient(q0, q1, a), orient(q0, q1, b)
+    d3, d4 = orient(a, b, q0), orient(a, b, q1)
+    return bool(np.any((d1 * d2 < 0) & (d3 * d4 < 0)))
+
+
 def _ray_hit(points: np.ndarray, origin: np.ndarray, direction: np.ndarray, skip: set) -> tuple[int, float, float]:
     """First crossing of the ray origin + t direction (t > 0) with the closed polygon:
     (segment index, t along the ray, fraction along the segment); (-1, inf, 0) if none."""
@@ -189,7 +267,7 @@ def plan_cuts(outline: Outline, darts: list[Dart]) -> tuple[np.ndarray, np.ndarr
             continue
         if any(_segments_cross(P[tip], end, P[q[0]], q[4]) for q in plans):
             continue
-        plans.append((tip, seg, f, d.seam, end))
+        plans.append((tip, seg, f, d, end))
     # Insert the cut ends (onto a loop point only when they hit it: moving a cut end would
     # turn the cut off the dart's axis).
     inserts = {}  # segment -> [(fraction, plan index)]
@@ -213,9 +291,9 @@ def plan_cuts(outline: Outline, darts: list[Dart]) -> tuple[np.ndarray, np.ndarr
     new_pos = {i: p for p, i in enumerate(parent) if i >= 0}
     cuts = []
     pts = np.asarray(pts)
-    for k, (tip, seg, f, name, end) in enumerate(plans):
+    for k, (tip, seg, f, d, end) in enumerate(plans):
         e = new_pos[snapped[k]] if k in snapped else where[k]
-        cuts.append(Cut(new_pos[tip], e, pts[new_pos[tip]].copy(), pts[e].copy(), name))
+        cuts.append(Cut(new_pos[tip], e, pts[new_pos[tip]].copy(), pts[e].copy(), d.seam, d.kind))
     return pts, np.asarray(parent), cuts
 
 
@@ -251,7 +329,10 @@ def split_panel(panel: Panel, outline: Outline, darts: list[Dart]) -> Split | No
     seg_edges = panel.segment_edges
     bulge = panel.segment_bulge
     ids = np.asarray(panel.vertex_ids)
-    tips = np.array([c.p0 for c in cuts])
+    # A dart's or notch's tip lies in the middle of a piece's side (leg + cut, nearly
+    # straight) and is never a corner; both ends of a neck are.
+    tips = np.array([c.p0 for c in cuts if c.kind != "neck"]).reshape(-1, 2)
+    neck_starts = {c.start for c in cuts if c.kind == "neck"}
 
     def loop_next(a):
         return (a + 1) % Bp
@@ -269,7 +350,7 @@ def split_panel(panel: Panel, outline: Outline, darts: list[Dart]) -> Split | No
         on_cuts = set()
         for idx, a in enumerate(nodes):
             b = nodes[(idx + 1) % len(nodes)]
-            if parent_pos[a] in hint_pos or parent_pos[a] < 0:
+            if parent_pos[a] in hint_pos or parent_pos[a] < 0 or a in neck_starts:
                 hints.append(len(pts))  # pattern vertices and the cut ends on the outline
             pts.append(points[a])
             node_of.append(a)

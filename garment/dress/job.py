@@ -30,13 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
+from conform.quality import folded
 from sim.errors import InputError, SimulationError
 from sim.files import atomic_write, output_folder
 
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
-from .layout import PlacementError, folded, separate
+from .layout import PlacementError, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 
@@ -135,11 +136,10 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     conform_options = ConformOptions(knot_span=options.knot_span_mm * 1e-3)
     panels, seams = read_pattern(pattern, conform_options.finest_span)
     ps = conform_all(panels, seams, conform_options)
-    # A net that folds over between quadrature points (a narrow strap on a torso panel) is
-    # no valid cloth either. Halving the knot span does not unfold the corpus's straps
-    # (measured: upper_garment_00, 02, 06 still fold at 10 mm); they need their own patch.
+    # conform_all cuts a panel whose net folds over into pieces; one that still folds (no
+    # cut helped) is no valid cloth.
     bad = dict(ps.failures)
-    bad.update({p.name: "its net folds over (a narrow part: it needs a patch of its own)"
+    bad.update({p.name: "its net folds over between quadrature points (no cut of the panel helped)"
                 for p in ps.patches if folded(p)})
     if bad:
         raise DressFailure("conform", "panels that did not conform: " + "; ".join(f"{k}: {v}" for k, v in bad.items()))

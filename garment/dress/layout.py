@@ -93,19 +93,6 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
     return {k: np.array(v) for k, v in found.items()}
 
 
-def folded(patch, per_span: int = 4) -> bool:
-    """Whether the patch's map from parameters to its flat rest shape folds over anywhere:
-    a triangle of a fine grid (`per_span` per knot span) turned over. The Jacobian checks
-    of conforming look at quadrature points only; a narrow strap can fold between them."""
-    n, m = patch.shape
-    res = (per_span * (n - 2) + 1, per_span * (m - 2) + 1)
-    W = interpolation_matrix(*sample_grid(n, m, res), n, m, 0, n * m)
-    X = W @ patch.rest.reshape(-1, 2)
-    T = X[grid_faces(*res)]
-    area = (T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1]) - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0])
-    return bool((area <= 0).any())
-
-
 def _middles(patches) -> np.ndarray:
     """(P, 3) the point of each patch's control net at its middle."""
     return np.array([p.world[p.shape[0] // 2, p.shape[1] // 2] for p in patches])

@@ -1,0 +1,72 @@
+"""Panels one patch cannot cover (conform/pipeline.py rescue_splits): a narrow strap on a
+torso panel, and a slit no seam declares. With splitting off, the single patch folds
+over or cannot be untangled; by default the panel is cut (at the neck, at the notch) and
+every piece conforms without folding, the pieces keeping the panel's area."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conform import ConformOptions, conform_all
+from conform.boundary import extract_outline
+from conform.pipeline import rescue_splits
+from conform.quality import folded
+from conform.split import necks_of, notches_of
+from garment.io.garmentcode import read_garmentcode
+
+
+def pattern(path, vertices):
+    """A one-panel GarmentCode pattern (cm) with straight edges and no stitches."""
+    panels = {"front": {"translation": [0, 0, 0], "rotation": [0, 0, 0], "vertices": vertices,
+                        "edges": [{"endpoints": [k, (k + 1) % len(vertices)]} for k in range(len(vertices))]}}
+    path.write_text(json.dumps({"pattern": {"panels": panels, "stitches": []},
+                                "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
+    return read_garmentcode(path)
+
+
+# A 40 x 30 cm torso with a strap 30 cm long rising from the middle of its top (5 cm wide
+# at its root, 3 cm at its end).
+STRAP = [[0, 0], [40, 0], [40, 30], [22, 30], [21, 60], [18, 60], [17, 30], [0, 30]]
+# A 50 x 60 cm skirt panel with a 45 cm slit up from its hem (1 cm open at the hem).
+SLIT = [[0, 0], [24.5, 0], [25, 45], [25.5, 0], [50, 0], [50, 60], [0, 60]]
+
+
+def conformed(panels, seams, split):
+    ps = conform_all(panels, seams, ConformOptions(knot_span=0.04, split=split))
+    return ps, [p for p in ps.patches if folded(p)]
+
+
+@pytest.mark.parametrize("shape", ["strap", "slit"])
+def test_a_panel_one_patch_cannot_cover_is_cut_into_pieces_that_do_not_fold(tmp_path, shape):
+    panels, seams = pattern(tmp_path / "p.json", STRAP if shape == "strap" else SLIT)
+    whole, whole_folds = conformed(panels, seams, "never")
+    assert whole.failures or whole_folds  # one patch: no valid net
+    ps, folds = conformed(panels, seams, "auto")
+    assert not ps.failures and not folds
+    assert len(ps.patches) >= 2
+    assert ps.splits["front"]["converted"]
+    # Pieces cover the panel: their areas add up to it (exact 2 x 2 Gauss rule).
+    assert abs(ps.splits["front"]["area_error_gauss2_pct"]) < 0.5
+    # The cuts are seams between the pieces, mapped onto both patch boundaries.
+    cut_seams = [s for s in ps.seams if ".cut" in s.name]
+    assert len(cut_seams) == len(ps.patches) - 1
+
+
+def test_the_strap_is_cut_across_its_base_and_the_slit_along_its_axis(tmp_path):
+    panels, _ = pattern(tmp_path / "strap.json", STRAP)
+    necks = necks_of(extract_outline(panels[0]), 0.16)
+    a, b = necks[0].tip, necks[0].tip + necks[0].depth * necks[0].axis
+    # The narrowest neck joins the strap's two sides near its root (y = 0.30 m).
+    assert necks[0].depth < 0.06
+    assert min(a[1], b[1]) >= 0.29 and max(a[1], b[1]) < 0.40
+    assert min(a[0], b[0]) < 0.18 and max(a[0], b[0]) > 0.21
+    panels, seams = pattern(tmp_path / "slit.json", SLIT)
+    notches = notches_of(extract_outline(panels[0]))
+    assert len(notches) == 1
+    np.testing.assert_allclose(notches[0].tip, [0.25, 0.45], atol=0.011)
+    np.testing.assert_allclose(notches[0].axis, [0.0, 1.0], atol=0.02)
+    split = next(rescue_splits(panels[0], extract_outline(panels[0]), seams, ConformOptions(knot_span=0.04)))
+    np.testing.assert_allclose(split.cuts[0].p1, [0.25, 0.60], atol=0.011)  # up to the waist
