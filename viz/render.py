@@ -50,7 +50,10 @@ class RenderOptions:
     axis over the video instead of keeping it fixed. azimuth / elevation: view direction
     in degrees (azimuth from +x towards +y when z is up; the camera goes to the side the
     cloth's front faces). zoom: > 1 moves closer. up: the scene's vertical (None: +z;
-    `garment simulate` passes the direction against gravity, so Y-up scenes stand)."""
+    `garment simulate` passes the direction against gravity, so Y-up scenes stand).
+    follow: aim at each frame's own centre (smoothed over FOLLOW_SMOOTH seconds) at the
+    distance that fits the largest single frame, instead of framing the whole path (a
+    dancer who travels stays large in the picture)."""
 
     size: tuple[int, int] = (640, 480)
     fps: float = 30.0
@@ -59,6 +62,23 @@ class RenderOptions:
     elevation: float = 20.0
     zoom: float = 1.0
     up: tuple[float, float, float] | None = None
+    follow: bool = False
+
+
+FOLLOW_SMOOTH = 0.5  # s: the follow camera's moving-average window (no jitter from steps)
+
+
+def follow_path(frames: list[FrameData], fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The follow camera: (K, 3) smoothed centre of each frame's box and the (2, 3) box,
+    centred on the origin, that holds every frame around its centre."""
+    boxes = np.array([scene_bounds([f]) for f in frames])  # (K, 2, 3)
+    centres = boxes.mean(axis=1)
+    half = max(1, int(round(0.5 * FOLLOW_SMOOTH * fps)))
+    padded = np.concatenate([np.repeat(centres[:1], half, 0), centres, np.repeat(centres[-1:], half, 0)])
+    kernel = np.ones(2 * half + 1) / (2 * half + 1)
+    smooth = np.stack([np.convolve(padded[:, d], kernel, mode="valid") for d in range(3)], axis=1)
+    extent = np.maximum(np.abs(boxes[:, 0] - smooth), np.abs(boxes[:, 1] - smooth)).max(axis=0)
+    return smooth, np.array([-extent, extent])
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -298,7 +318,10 @@ def render(
     frames = frames if isinstance(frames, list) else list(frames)
     if not frames:
         raise ValueError("no frames to render")
-    if bounds is None:
+    centres = None
+    if options.follow:
+        centres, bounds = follow_path(frames, options.fps)
+    elif bounds is None:
         bounds = scene_bounds(frames)
     with contextlib.ExitStack() as stack:  # unwinds in reverse: writer, file, renderer
         renderer = SceneRenderer(meshes, bounds, options, first=frames[0][2])
@@ -310,6 +333,8 @@ def render(
             stack.callback(writer.close)
         for k, (index, _, positions) in enumerate(frames):
             turn = k / len(frames) if options.orbit else 0.0
+            if centres is not None:
+                renderer.center = centres[k]
             writer.write(index, renderer.image(positions, turn))
             if on_frame is not None:
                 on_frame(k)

@@ -57,7 +57,7 @@ def run(args) -> int:
     scene = demo_scene(args.output, args.frames)
     video = None if args.no_video else args.output.with_suffix(".mp4")
     simulate(scene, args.output, None, quiet=args.quiet, render_to=video,
-             render_options=RenderOptions(size=(640, 640), fps=25.0, azimuth=-70.0, elevation=10.0))
+             render_options=RenderOptions(size=(640, 640), fps=25.0, azimuth=-70.0, elevation=10.0, follow=True))
     usd = args.output.with_suffix(".usd")
     write_usd(load_recording(args.output), usd)
     print_how_to_open(args.output, video)

@@ -399,7 +399,8 @@ def render_options(args):
     except ValueError as e:
         raise InputError(f"--render-size: {e}") from None
     number_option("--fps", args.fps, gt=0, le=1000)
-    return RenderOptions(size=size, fps=args.fps, orbit=args.orbit, up=UP_VECTORS.get(args.up))
+    return RenderOptions(size=size, fps=args.fps, orbit=args.orbit, up=UP_VECTORS.get(args.up),
+                         follow=args.follow)
 
 
 def add_render_options(p) -> None:
@@ -408,6 +409,8 @@ def add_render_options(p) -> None:
                    help="render the frames off-screen to OUT: .mp4, .gif, or a folder of PNG frames")
     p.add_argument("--render-size", default="640x480", metavar="WxH", help="image size in pixels (640x480)")
     p.add_argument("--orbit", action="store_true", help="orbit the camera once around the scene")
+    p.add_argument("--follow", action="store_true",
+                   help="keep the camera on each frame's centre (a body that travels stays large)")
     p.add_argument("--fps", type=float, default=30.0, help="video frames per second (30)")
     p.add_argument("--up", choices=tuple(UP_VECTORS), help="the vertical of the picture "
                    "and the up axis of a USD export (simulate: against the scene's gravity; inspect: z)")

@@ -123,3 +123,26 @@ def test_up_axis_stands_a_y_up_scene_upright(tmp_path):
         rows, cols = np.nonzero(foreground(iio.imread(next(out.iterdir()))[..., :3]))
         aspect[up[1]] = (np.ptp(rows) + 1) / (np.ptp(cols) + 1)
     assert aspect[1.0] > 3.0 and aspect[0.0] < 1.0
+
+
+def test_the_follow_camera_keeps_a_travelling_scene_large(tmp_path):
+    """The scene moves 4 m sideways over the clip: framed whole it shrinks to a sliver,
+    followed it keeps the size of a single frame (its centre tracked, smoothed)."""
+    from viz.render import follow_path
+
+    meshes, frames = wavy_scene(25)
+    frames = [(k, t, {n: x + [0.16 * k, 0.0, 0.0] for n, x in pos.items()}) for k, t, pos in frames]
+    centres, box = follow_path(frames, fps=25.0)
+    own = scene_bounds(frames[:1])
+    # Every frame fits the followed box around its own (smoothed) centre, and the box is
+    # a frame's size plus the smoothing lag (0.5 s at 4 m/s: < 0.6 m), not the 4 m path.
+    for (_, _, pos), c in zip(frames, centres):
+        b = scene_bounds([(0, 0.0, pos)])
+        assert np.all(b[0] >= c + box[0] - 1e-12) and np.all(b[1] <= c + box[1] + 1e-12)
+    assert box[1, 0] - (own[1, 0] - own[0, 0]) / 2 < 0.6
+    assert np.ptp(centres[:, 0]) > 3.0
+    fixed = iio.imread(render(meshes, frames[-1:], tmp_path / "a",
+                              RenderOptions(size=SIZE), bounds=scene_bounds(frames)) / "frame_00024.png")
+    followed = iio.imread(render(meshes, frames, tmp_path / "b", RenderOptions(size=SIZE, follow=True))
+                          / "frame_00024.png")
+    assert foreground(followed).sum() > 3 * foreground(fixed).sum()
