@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 from .checkpoint import Checkpoint, write_checkpoint
-from .recovery import StepFailure, raise_failure, step_with_recovery
+from .recovery import Interrupted, StepFailure, raise_failure, step_with_recovery
 from .sinks import Frame
 from .stats import StepStats
 
@@ -83,7 +83,12 @@ def drive(sim, frames: int, steps_per_frame: int = 1, sinks: Iterable = (), *,
                     sub = [sim.step()]
                 else:
                     try:
-                        sub = step_with_recovery(sim, floor, warn if on_warning is not None else None)
+                        sub = step_with_recovery(sim, floor, warn if on_warning is not None else None, should_stop)
+                    except Interrupted:  # stopped inside a split step: as if before it
+                        sim.state = frame_start
+                        result.stopped = True
+                        save()
+                        return result
                     except StepFailure as e:
                         sim.state = frame_start
                         save()

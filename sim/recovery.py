@@ -34,26 +34,34 @@ class StepFailure(Exception):
         super().__init__(f"t = {time:.6g} s: {cause}")
 
 
+class Interrupted(Exception):
+    """The caller's stop condition (a wall-clock limit) came true between sub-steps."""
+
+
 class SplitWarning(UserWarning):
     """A step was retried as two half steps."""
 
 
 def step_with_recovery(sim, floor: float | None = None,
-                       on_warning: Callable[[str], None] | None = None) -> list[StepStats]:
+                       on_warning: Callable[[str], None] | None = None,
+                       should_stop: Callable[[], bool] | None = None) -> list[StepStats]:
     """Advance `sim` by one step of its dt; returns the stats of the (sub)steps taken.
 
     floor: smallest time step tried (default dt / 2^DEFAULT_SPLITS). Raises StepFailure
     with `sim` restored to the state before the step when even steps of `floor` fail.
     Warnings go to `on_warning`, or through `warnings.warn` (SplitWarning) when None.
+    should_stop: asked before every retry and sub-step (a split step can take minutes);
+    when true, raises Interrupted with `sim` restored to the state before the step.
     """
     dt = sim.dt
     floor = dt / 2**DEFAULT_SPLITS if floor is None else floor
     start = sim.state.copy()
     warn = on_warning or (lambda msg: warnings.warn(msg, SplitWarning, stacklevel=3))
     try:
-        stats = _advance(sim, dt, floor, warn)
-    except StepFailure:
+        stats = _advance(sim, dt, floor, warn, should_stop or (lambda: False))
+    except (StepFailure, Interrupted):
         sim.state = start
+        sim.set_dt(dt)
         raise
     # Two halves add up to dt only to round-off: keep the time grid of unsplit runs.
     if len(stats) > 1:
@@ -61,7 +69,9 @@ def step_with_recovery(sim, floor: float | None = None,
     return stats
 
 
-def _advance(sim, dt: float, floor: float, warn) -> list[StepStats]:
+def _advance(sim, dt: float, floor: float, warn, stop, sub: bool = False) -> list[StepStats]:
+    if sub and stop():  # the caller asked before the whole step; sub-steps ask again
+        raise Interrupted(f"stopped at t = {sim.state.t:.6g} s")
     before = sim.state.copy()
     try:
         st = sim.step()
@@ -76,7 +86,7 @@ def _advance(sim, dt: float, floor: float, warn) -> list[StepStats]:
     warn(f"t = {before.t:.6g} s: {problem}; retrying as two steps of {dt / 2:.3g} s")
     sim.set_dt(dt / 2)
     try:
-        return _advance(sim, dt / 2, floor, warn) + _advance(sim, dt / 2, floor, warn)
+        return _advance(sim, dt / 2, floor, warn, stop, True) + _advance(sim, dt / 2, floor, warn, stop, True)
     finally:
         sim.set_dt(dt)
 

@@ -19,7 +19,7 @@ from garment.scene import loads_scene
 from sim.checkpoint import read_checkpoint, write_checkpoint
 from sim.state import State
 from sim.driver import CheckpointPolicy, drive
-from sim.recovery import SplitWarning, StepFailure, step_with_recovery
+from sim.recovery import Interrupted, SplitWarning, StepFailure, step_with_recovery
 from garment.build import build_simulator, scene_hash
 from sim.simulator import Simulator
 from viz.recording import load_recording
@@ -264,3 +264,28 @@ def test_periodic_checkpoints_and_nothing_left_to_do(tmp_path, capsys):
     assert main(["simulate", str(toml), "-o", str(rrd), "-q"]) == 0
     assert main(["simulate", str(toml), "-o", str(rrd), "--resume"]) == 0
     assert "nothing to do" in capsys.readouterr().err and not (tmp_path / "run.part2.rrd").exists()
+
+
+def test_a_stop_request_is_honoured_between_the_sub_steps_of_a_split_step(tmp_path):
+    """A split step can take minutes (a wall-clock limit must not wait for it): the stop
+    condition is asked before every sub-step, and the run ends at the last whole frame."""
+    scene = loads_scene(HANGING_SHEET)
+    sim, ref = build_simulator(scene), build_simulator(scene)
+    ref.set_dt(0.0025)
+    for _ in range(8):  # frame 1 in quarter steps
+        ref.step()
+    failing_above(sim, 0.0025)  # every step splits into quarters
+    asked = []
+
+    def stop():  # 7 questions per step (before it, 2 halves, 4 quarters): true in frame 2's
+        asked.append(1)  # first step, before its first quarter
+        return len(asked) >= 17
+
+    messages = []
+    result = drive(sim, 4, 2, should_stop=stop, on_warning=messages.append)
+    assert result.stopped and result.last_frame == 1
+    assert sim.t == pytest.approx(0.02) and sim.dt == 0.01
+    np.testing.assert_allclose(sim.C, ref.C, rtol=0, atol=1e-12)
+    with pytest.raises(Interrupted):  # directly: the state is back at the step's start
+        step_with_recovery(sim, on_warning=messages.append, should_stop=lambda: True)
+    assert sim.t == pytest.approx(0.02) and sim.dt == 0.01
