@@ -144,6 +144,7 @@ class Model:
 
         self.obstacles = list(obstacles)
         self.seam_contact = self.barrier = self.drive = self.stiffness = self.friction = None
+        self.cloth_motion = 0.0  # m: the last step's largest cloth-vertex motion (sets the contact reach)
         if contact is not None and contact.enabled:
             pairs = seams.vertex_pairs if seams is not None else np.zeros((0, 2), np.int64)
             excluded = seams.excluded if seams is not None else set()

@@ -36,13 +36,16 @@ def step(model: Model, state: State) -> StepStats:
     if model.inertia is not None:
         model.inertia.target = C_hat
     x0 = np.where(model.pinned[:, None], targets, C_hat)
+    reach = None
     if model.barrier is not None:
+        model.drive.set_time(t_next)
+        reach = contact_reach(model, state, x0)
+        model.barrier.contact.focus(state.C, model.drive.target, reach + model.barrier.dhat)
         # The predictor must not tunnel through a barrier thinner than one step of
         # motion: move only the collision-free fraction of the way (CCD), bodies
         # included; Newton carries on with whatever body motion remains.
         if model.friction is not None:
             model.friction.lag(state.C)
-        model.drive.set_time(t_next)
         C_start = np.where(model.pinned[:, None], targets, state.C)
         t_ccd = _time.perf_counter()
         alpha = model.potential.max_step(C_start, x0, model.drive.target if model.drive.pending else None)
@@ -52,6 +55,8 @@ def step(model: Model, state: State) -> StepStats:
         if model.stiffness is not None:
             stats.extra["kappa"] = model.stiffness.update(model.potential, x0)
     C_new = minimize(model.potential, x0, model.newton, stats)
+    if reach is not None:
+        C_new = _within_reach(model, state, C_start, C_new, reach, stats)
     if sewing is not None:
         stats.extra["seam_gap_max"] = sewing.after_step(C_new)
     if model.barrier is not None:
@@ -66,3 +71,44 @@ def step(model: Model, state: State) -> StepStats:
     model.record(state)
     stats.t_total = _time.perf_counter() - start
     return stats
+
+
+REACH = 0.03  # m: the least cloth motion per step the contact region allows for
+
+
+def contact_reach(model: Model, state: State, x0: np.ndarray) -> float:
+    """How far (m) the cloth may move in this step with the contact region it gets
+    (ContactMesh.focus): REACH, or twice the last step's motion or the predictor's, if more.
+    A step that moves farther fails and is split (sim/recovery.py)."""
+    return max(REACH, 2.0 * model.cloth_motion, 2.0 * _largest_motion(model, state.C, x0))
+
+
+def _within_reach(model: Model, state: State, C_start, C_new, reach: float, stats: StepStats) -> np.ndarray:
+    """C_new, when the cloth stayed within `reach` of where it started. Otherwise obstacle
+    triangles beyond reach were left out of the step: with them added, the straight path
+    from the start must be collision free (else RuntimeError: the step is split, see
+    sim/recovery.py), and Newton carries on from C_new with every contact it can have."""
+    moved = _largest_motion(model, state.C, C_new)
+    stats.extra["cloth_motion"] = model.cloth_motion = moved
+    if moved <= reach:
+        return C_new
+    contact = model.barrier.contact
+    B_end = contact.obstacle_vertices.copy()
+    if state.obstacle_vertices is not None:
+        contact.move_obstacles(np.array(state.obstacle_vertices, float))
+    widened = contact.focus(state.C, B_end, 2.0 * moved + model.barrier.dhat)
+    alpha = model.potential.max_step(C_start, C_new, B_end) if widened else 1.0
+    contact.move_obstacles(B_end)
+    if not widened:
+        return C_new
+    if alpha < 1.0:
+        raise RuntimeError(f"the cloth moved {moved:.3g} m in one step, beyond the contact reach of "
+                           f"{reach:.3g} m, and through an obstacle left out")
+    if model.friction is not None:
+        model.friction.lag(state.C)
+    return minimize(model.potential, C_new, model.newton, stats)
+
+
+def _largest_motion(model: Model, C0: np.ndarray, C1: np.ndarray) -> float:
+    d = model.barrier.contact.W @ (C1 - C0)
+    return float(np.sqrt((d * d).sum(axis=1).max(initial=0.0)))

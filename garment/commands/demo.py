@@ -13,7 +13,7 @@ from pathlib import Path
 from .simulate import print_how_to_open, simulate
 
 ROOT = Path(__file__).resolve().parents[2]
-PATTERN = ROOT / "assets" / "garments" / "skirt_panels.json"
+PATTERN = ROOT / "assets" / "garments" / "skirt_makehuman.json"
 PREROLL = 1.0  # s
 SECONDS = 3.0  # of the clip's lively stretch (garment.io.rigged.LIVELY)
 

@@ -11,72 +11,131 @@ from __future__ import annotations
 import ipctk
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 
 class ContactMesh:
     """W: (Vc, n_cp) cloth interpolation; cloth_faces (Fc, 3) on cloth vertices; rest
-    (Vc, 3) initial cloth vertices; obstacles: list of garment.io.obstacles.ObstacleGeometry."""
+    (Vc, 3) initial cloth vertices; obstacles: list of garment.io.obstacles.ObstacleGeometry.
+
+    Only the obstacle triangles near the cloth take part (`focus`, once per time step): a
+    body of 50K triangles under a garment of 5K made every broad phase (collision sets,
+    CCD) cost 0.2 s, 70 % of a dressing step, for contacts that can only happen within
+    reach of the cloth. `body_ids` are the obstacle vertices in the ipctk mesh (None: all);
+    obstacle positions are kept whole (`obstacle_vertices`)."""
 
     def __init__(self, W: sp.csr_matrix, cloth_faces: np.ndarray, rest: np.ndarray, obstacles=(),
-                 piece_ids: np.ndarray | None = None, self_contact: bool = True, excluded=()):
+                 piece_ids: np.ndarray | None = None, self_contact: bool = True, excluded=(),
+                 body_ids: np.ndarray | None = None):
         """piece_ids: (Vc,) cloth piece of each vertex, needed when self_contact is off;
-        excluded: cloth vertex pairs (i < j) that never collide (stitched neighbours)."""
+        excluded: cloth vertex pairs (i < j) that never collide (stitched neighbours);
+        body_ids: the obstacle vertices taking part (another mesh's focus; None: all)."""
         self.W = W.tocsr()
         self.n_cloth = W.shape[0]
         self.piece_ids = piece_ids
+        self.self_contact, self.excluded = self_contact, excluded
         self.obstacles = list(obstacles)
         self.obstacle_vertices = (np.concatenate([o.at(0.0) for o in self.obstacles])
                                   if self.obstacles else np.zeros((0, 3)))
-        faces = [np.asarray(cloth_faces, np.int32)]
-        offset = self.n_cloth
+        self._rest = np.asarray(rest, float)
+        self.cloth_faces = np.ascontiguousarray(cloth_faces, dtype=np.int32)
+        body, offset = [], 0
         for o in self.obstacles:
-            faces.append(o.faces + offset)
+            body.append(o.faces + offset)
             offset += o.vertices.shape[0]
-        self.faces = np.ascontiguousarray(np.concatenate(faces), dtype=np.int32)
-        self.cloth_faces = self.faces[: len(cloth_faces)]
+        self.body_faces = np.concatenate(body).astype(np.int32) if body else np.zeros((0, 3), np.int32)
+        self.body_ids = None
+        self._build(body_ids)
+        self.version = 0  # bumped whenever obstacles move or the mesh changes: cached contact data expire
+        # dx_cloth = W3 dC: 3x3-block expansion of W, for mapping gradients and Hessians.
+        self.W3 = sp.kron(self.W, sp.identity(3), format="csr")
+
+    def _build(self, body_ids: np.ndarray | None) -> None:
+        """The ipctk mesh of the cloth and the obstacle triangles on `body_ids` (None: all)."""
+        faces, ids = self.body_faces, None
+        if body_ids is not None:
+            use = np.zeros(len(self.obstacle_vertices), bool)
+            use[body_ids] = True
+            faces = faces[use[faces].all(axis=1)]
+            ids = np.asarray(body_ids, np.int64)
+            local = np.full(len(self.obstacle_vertices), -1, np.int64)
+            local[ids] = np.arange(len(ids))
+            faces = local[faces]
+        self.body_ids = ids
+        self.faces = np.ascontiguousarray(np.concatenate([self.cloth_faces, faces + self.n_cloth]), dtype=np.int32)
         edges = ipctk.edges(self.faces)
-        V = np.concatenate([rest, self.obstacle_vertices])
+        V = np.concatenate([self._rest, self.active(self.obstacle_vertices)])
         self.mesh = ipctk.CollisionMesh(np.asfortranarray(V), edges, self.faces)
         filters = []
-        if not self_contact:
+        n_obstacle = V.shape[0] - self.n_cloth
+        if not self.self_contact:
             # Pieces collide with each other and with obstacles, never with themselves;
             # obstacles share one label so they never collide with each other.
-            ids = np.concatenate([piece_ids, np.full(len(self.obstacle_vertices), -1)]).astype(np.int32)
-            filters.append(ipctk.make_vertex_patches_filter(ids))
+            labels = np.concatenate([self.piece_ids, np.full(n_obstacle, -1)]).astype(np.int32)
+            filters.append(ipctk.make_vertex_patches_filter(labels))
         elif self.obstacles:
             filters.append(ipctk.make_static_obstacle_filter(self.n_cloth))
-        if excluded:
-            filters.append(ipctk.make_sparse_filter({pair: False for pair in excluded}, True))
+        if self.excluded:
+            filters.append(ipctk.make_sparse_filter({pair: False for pair in self.excluded}, True))
         if filters:
             f = filters[0]
             for other in filters[1:]:
                 f = f & other
             self.mesh.can_collide = f
-        self.version = 0  # bumped whenever obstacles move, so cached contact data expire
-        # dx_cloth = W3 dC: 3x3-block expansion of W, for mapping gradients and Hessians.
-        self.W3 = sp.kron(self.W, sp.identity(3), format="csr")
+
+    def focus(self, C: np.ndarray, B1: np.ndarray, reach: float) -> bool:
+        """Keep the obstacle triangles that can come within `reach` of the cloth at C while
+        the obstacles move from where they are to B1: those whose centroid is within reach
+        + the obstacles' largest motion + the cloth's longest edge + the triangle's own
+        circumradius of a cloth vertex. Every contact within reach then keeps its whole
+        neighbourhood (a body vertex that close has all its triangles kept), so the
+        barrier, its area weights and CCD are those of the whole mesh. Returns whether
+        the mesh changed."""
+        if not len(self.body_faces):
+            return False
+        B0 = self.obstacle_vertices
+        motion = float(np.sqrt(((B1 - B0) ** 2).sum(axis=1).max(initial=0.0)))
+        x = self.W @ C
+        X = x[self.cloth_faces]
+        cloth_edge = float(np.sqrt(((X - np.roll(X, 1, axis=1)) ** 2).sum(axis=2).max(initial=0.0)))
+        T = B0[self.body_faces]
+        centre = T.mean(axis=1)
+        radius = np.sqrt(((T - centre[:, None]) ** 2).sum(axis=2)).max(axis=1)
+        bound = reach + motion + cloth_edge + radius
+        d, _ = cKDTree(x).query(centre, distance_upper_bound=float(bound.max()) * (1 + 1e-9))
+        ids = np.unique(self.body_faces[d <= bound])
+        if self.body_ids is not None and np.array_equal(ids, self.body_ids):
+            return False
+        self._build(ids)
+        self.version += 1
+        return True
 
     def move_obstacles(self, B: np.ndarray) -> None:
-        """Set the obstacle vertices (Vo, 3)."""
+        """Set the obstacle vertices (Vo, 3), all of them."""
         self.obstacle_vertices = np.ascontiguousarray(B, dtype=float)
         self.version += 1
 
+    def active(self, B: np.ndarray) -> np.ndarray:
+        """Rows of an (all obstacle vertices, ...) array for the obstacle vertices in the mesh."""
+        return B if self.body_ids is None else B[self.body_ids]
+
     @property
     def n_obstacle(self) -> int:
-        return self.obstacle_vertices.shape[0]
+        """Obstacle vertices in the ipctk mesh."""
+        return self.mesh.num_vertices - self.n_cloth
 
     def vertices(self, C: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
         """(V, 3) Fortran-ordered collision-mesh vertices for control points C (n_cp, 3) and
-        obstacle vertices B (the current ones when None)."""
+        obstacle vertices B (all of them; the current ones when None)."""
         B = self.obstacle_vertices if B is None else B
-        return np.asfortranarray(np.concatenate([self.W @ C, B]))
+        return np.asfortranarray(np.concatenate([self.W @ C, self.active(B)]))
 
     def cloth_part(self, v: np.ndarray) -> np.ndarray:
         """Rows of a per-DOF vector (3 V,) that belong to cloth vertices."""
         return v[: 3 * self.n_cloth]
 
     def obstacle_part(self, v: np.ndarray) -> np.ndarray:
-        """(Vo, 3) obstacle-vertex rows of a per-DOF vector (3 V,)."""
+        """(Vo, 3) obstacle-vertex rows of a per-DOF vector (3 V,) (those in the mesh)."""
         return v[3 * self.n_cloth:].reshape(-1, 3)
 
 
@@ -117,7 +176,8 @@ def crossing_parts(mesh: ContactMesh, x: np.ndarray) -> dict[tuple[int, int], in
     crossings: parts are cloth pieces 0, 1, ... (mesh.piece_ids) and obstacles -1, -2, ...
     (in mesh.obstacles' order). Keys are sorted pairs; a piece crossing itself is (k, k)."""
     sizes = [o.vertices.shape[0] for o in mesh.obstacles]
-    part = np.concatenate([np.asarray(mesh.piece_ids), np.repeat(-1 - np.arange(len(sizes)), sizes)]).astype(int)
+    body = mesh.active(np.repeat(-1 - np.arange(len(sizes)), sizes))
+    part = np.concatenate([np.asarray(mesh.piece_ids), body]).astype(int)
     counts: dict[tuple[int, int], int] = {}
     for e, f in _crossings(mesh.mesh, x, mesh.n_cloth):
         a, b = sorted((int(part[e[0]]), int(part[f[0]])))

@@ -61,4 +61,4 @@ class ContactEnergy(Energy):
             self._vertex_hessian(C)
         if self._H_cb is None:
             return np.zeros((self.contact.W.shape[1], 3))
-        return (self.contact.W3.T @ (self._H_cb @ dB.ravel())).reshape(-1, 3)
+        return (self.contact.W3.T @ (self._H_cb @ self.contact.active(dB).ravel())).reshape(-1, 3)

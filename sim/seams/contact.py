@@ -102,7 +102,8 @@ class SeamContact:
             excluded = {(min(i, j), max(i, j)) for i, j in ((labels[a], labels[b]) for a, b in excluded) if i != j}
 
         def build(excluded) -> ContactMesh:
-            mesh = ContactMesh(W, faces, W @ C, self.obstacles, ids, self.self_contact, excluded)
+            mesh = ContactMesh(W, faces, W @ C, self.obstacles, ids, self.self_contact, excluded,
+                               body_ids=None if like is None else like.body_ids)
             if like is not None:  # cached contact data expire
                 mesh.move_obstacles(like.obstacle_vertices.copy())
                 mesh.version = like.version + 1
