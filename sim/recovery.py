@@ -22,7 +22,9 @@ from sim.errors import SimulationError
 from .stats import StepStats
 
 # Numerical failures worth a retry; anything else is a bug and keeps its traceback.
-RECOVERABLE = (ArithmeticError, np.linalg.LinAlgError, CholmodError, ValueError, RuntimeError)
+# MemoryError: ipctk's broad phase throws std::bad_alloc when a step's motion makes every
+# box overlap every other (a demo step at t = 1.24 s); half the motion needs far less.
+RECOVERABLE = (ArithmeticError, np.linalg.LinAlgError, CholmodError, ValueError, RuntimeError, MemoryError)
 DEFAULT_SPLITS = 4  # floor = dt / 2^4
 
 
