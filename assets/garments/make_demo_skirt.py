@@ -5,16 +5,17 @@ GarmentCode sampled the skirt for its `mean_all` body, whose waist where the ski
 sits (0.635 of the height) measures 0.85 m around; the MakeHuman body's measures 0.67 m.
 Dressed as sampled, the skirt (0.84 m at its top) hangs loose and slides down the legs
 during the jumps. Grading keeps its length and shape and scales every width, and its
-placement around the vertical axis, by GRADE: 0.84 m -> 0.67 m at the top, 1.09 m ->
-0.87 m at the hem. Panels are vertical (rotated about Y only), so a panel's x is
-horizontal; the hem arcs' radii scale with their edges.
+placement around the vertical axis, by GRADE: 0.84 m -> 0.76 m at the top, which the
+hips below hold up, 1.09 m -> 0.98 m at the hem. (At 0.8 the hem squeezed the hips and
+trapped a hand against them at the second landing.) Panels are vertical (rotated about
+Y only), so a panel's x is horizontal; the hem arcs' radii scale with their edges.
 Run: python make_demo_skirt.py > skirt_makehuman.json
 """
 
 import json
 from pathlib import Path
 
-GRADE = 0.8  # MakeHuman waist / mean_all waist at the skirt's top (0.67 m / 0.85 m)
+GRADE = 0.9  # the top: 0.76 m, between the waist (0.67 m) and the hips
 
 
 def main() -> None:
