@@ -547,13 +547,18 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
 
     def conform_tree(panel, hints, avoid, parent, split, seams, depth):
         """[(piece, patch, report, split)] and the seams, the panel cut as needed."""
-        error = None
+        error, patch, rep = None, None, None
+        # A piece of a rescued panel that still has a dart or notch (a dart whose cut would
+        # cross another) is cut again: one patch around a dart tip is what failed before.
+        darted = depth > 0 and bool(darts_of(panel.name, seams) or notches_of(extract_outline(panel)))
         try:
+            if darted and depth < RESCUE_DEPTH:
+                raise PanelError(panel, "a dart or notch inside a piece")
             patch, rep = attempt(panel, hints, avoid, parent, split, seams)
             if not rep["folds"]:
                 return [(panel, patch, rep, split)], seams, []
         except PanelError as e:
-            patch, error = None, e
+            error = e
         if depth < RESCUE_DEPTH and options.split != "never" and corners.get(panel.name) is None:
             outline = extract_outline(panel)
             for rescue in rescue_splits(panel, outline, seams, options):
@@ -573,7 +578,10 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
                         break
                 if ok:
                     return done, trial, [rescue] + more
-        if error is not None:
+        if patch is None and error is not None and darted:  # no cut helped: the piece whole
+            patch, rep = attempt(panel, hints, avoid, parent, split, seams)
+            error = None if not rep["folds"] else error
+        if patch is None:
             raise error
         return [(panel, patch, rep, split)], seams, []  # folded: kept, flagged in its report
 
