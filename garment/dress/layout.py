@@ -93,6 +93,28 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
     return {k: np.array(v) for k, v in found.items()}
 
 
+TOUCH = 1e-3  # m: panels closer than this start inside each other's contact barrier
+
+
+def touching(patches, names, surface: _Surface | None = None) -> dict[tuple[int, int], np.ndarray]:
+    """Pairs of patches that touch without crossing: {(a, b): points (K, 3)}, sampled
+    surface points of two patches closer than TOUCH (GarmentCode lays some panels corner
+    to corner, e.g. a godet skirt's inserts). Contact would start at zero distance and
+    hold them still. Pieces of one split panel meet along their cuts by design: skipped."""
+    surface = surface or _Surface.of(patches)
+    x = surface.vertices(patches)
+    pairs = cKDTree(x).query_pairs(TOUCH, output_type="ndarray")
+    if not len(pairs):
+        return {}
+    root = np.array([n.split(".")[0] for n in names])
+    a, b = surface.owner[pairs[:, 0]], surface.owner[pairs[:, 1]]
+    keep = (a != b) & (root[a] != root[b])
+    out: dict[tuple[int, int], list] = {}
+    for i, j, (p, q) in zip(a[keep], b[keep], pairs[keep]):
+        out.setdefault((int(min(i, j)), int(max(i, j))), []).append(0.5 * (x[p] + x[q]))
+    return {k: np.array(v) for k, v in out.items()}
+
+
 def _middles(patches) -> np.ndarray:
     """(P, 3) the point of each patch's control net at its middle."""
     return np.array([p.world[p.shape[0] // 2, p.shape[1] // 2] for p in patches])
@@ -169,6 +191,8 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
     body_tree = cKDTree(body_V) if body_V is not None else None
     for layout.rounds in range(int(MOST / STEP) + 1):
         hits = crossings(patches, body_V, body_F, surface)
+        for pair, points in touching(patches, names, surface).items():
+            hits.setdefault(pair, points)
         self_hits = {k: v for k, v in hits.items() if k[0] == k[1]}
         if self_hits:
             (k, _), pts = next(iter(self_hits.items()))

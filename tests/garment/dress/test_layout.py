@@ -79,3 +79,25 @@ def test_impossible_layout_names_the_panels_and_where():
         separate([a, b], np.asarray(body.vertices), np.asarray(body.faces, np.int32))
     text = str(e.value)
     assert "panel yoke" in text and "panel fin" in text and " cm" in text and "placement" in text
+
+
+def test_panels_laid_corner_to_corner_are_moved_apart_but_pieces_of_one_panel_are_not():
+    """GarmentCode lays a godet skirt's inserts corner to corner: they cross nothing, yet
+    contact would start at zero distance and hold them still. Pieces of one split panel
+    meet along their cut by design and stay where they are."""
+    from garment.dress.layout import TOUCH, touching
+
+    body = torso()
+    a = Patch.rectangle("ins_0", (0.2, 0.3), (6, 8), origin=(-0.2, 0.3, 0.8), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    b = Patch.rectangle("ins_1", (0.2, 0.3), (6, 8), origin=(0.0005, 0.3, 1.1), axis_u=(0.8, 0.6, 0),
+                        axis_v=(0, 0, 1))  # a corner 0.5 mm from ins_0's
+    cut = [Patch.rectangle(f"back.{k}", (0.2, 0.3), (6, 8), origin=(-0.2 + 0.2 * k, -0.3, 0.8),
+                           axis_u=(1, 0, 0), axis_v=(0, 0, 1)) for k in (0, 1)]
+    patches = [a, b, *cut]
+    assert (0, 1) not in crossings(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32))
+    assert set(touching(patches, [p.name for p in patches])) == {(0, 1)}  # the corners meet
+    layout = separate(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32))
+    assert len({"ins_0", "ins_1"} & set(layout.moved)) == 1
+    x = [mesh(p)[0] for p in patches]
+    gap = np.linalg.norm(x[0][:, None] - x[1][None], axis=-1).min()
+    assert gap > TOUCH
