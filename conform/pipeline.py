@@ -548,9 +548,10 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     def conform_tree(panel, hints, avoid, parent, split, seams, depth):
         """[(piece, patch, report, split)] and the seams, the panel cut as needed."""
         error, patch, rep = None, None, None
+        outline = extract_outline(panel)
         # A piece of a rescued panel that still has a dart or notch (a dart whose cut would
         # cross another) is cut again: one patch around a dart tip is what failed before.
-        darted = depth > 0 and bool(darts_of(panel.name, seams) or notches_of(extract_outline(panel)))
+        darted = depth > 0 and bool(darts_of(panel.name, seams) or notches_of(outline))
         try:
             if darted and depth < RESCUE_DEPTH:
                 raise PanelError(panel, "a dart or notch inside a piece")
@@ -560,24 +561,21 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
         except PanelError as e:
             error = e
         if depth < RESCUE_DEPTH and options.split != "never" and corners.get(panel.name) is None:
-            outline = extract_outline(panel)
             for rescue in rescue_splits(panel, outline, seams, options):
                 trial = split_seams(seams, rescue, tolerance_for(outline, options))
-                done, ok = [], True
+                done, below = [], [rescue]
                 roots.update({piece.panel.name: root_of(panel) for piece in rescue.pieces})
                 for piece in rescue.pieces:
                     try:
                         parts, trial, more = conform_tree(piece.panel, None, piece.avoid, root_of(panel), rescue,
                                                           trial, depth + 1)
                     except PanelError:
-                        ok = False
                         break
-                    done += parts
-                    ok = ok and not any(r["folds"] for _, _, r, _ in parts)
-                    if not ok:
+                    if any(r["folds"] for _, _, r, _ in parts):
                         break
-                if ok:
-                    return done, trial, [rescue] + more
+                    done, below = done + parts, below + more
+                else:  # every piece conformed without folding
+                    return done, trial, below
         if patch is None and error is not None and darted:  # no cut helped: the piece whole
             patch, rep = attempt(panel, hints, avoid, parent, split, seams)
             error = None if not rep["folds"] else error

@@ -22,7 +22,7 @@ from sim.rest import point_data
 from sim.bspline import basis_matrix
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 
-from .boundary import Outline
+from .boundary import Outline, self_intersections, signed_areas
 from .curve_fit import evaluate
 from .control_net import side_rows
 from .mips import det, rule_points, simulator_rules
@@ -163,32 +163,11 @@ def folded(patch, per_span: int = 4, density: float = 2.0) -> bool:
 
 def _grid_folds(rest: np.ndarray, n: int, m: int, res: tuple[int, int]) -> bool:
     X = interpolation_matrix(*sample_grid(n, m, res), n, m, 0, n * m) @ rest
-    T = X[grid_faces(*res)]
-    area = (T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1]) - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0])
-    if (area <= 0).any():
+    if (signed_areas(X, grid_faces(*res)) <= 0).any():
         return True
     # Turned over nowhere, it can still lie over itself (a narrow strap whose sides
     # cross): a map without turned-over triangles is one-to-one exactly when its
     # boundary does not cross itself.
     G = X.reshape(res[0], res[1], 2)
     loop = np.concatenate([G[:, 0], G[-1, 1:], G[-2::-1, -1], G[0, -2:0:-1]])
-    return _self_crossing(loop)
-
-
-def _self_crossing(loop: np.ndarray) -> bool:
-    """Whether the closed polyline (P, 2) crosses itself (neighbouring segments aside)."""
-    a, b = loop, np.roll(loop, -1, axis=0)
-    P = len(loop)
-
-    def orient(p, q, r):
-        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
-
-    for i in range(P):
-        j = np.arange(i + 2, P if i else P - 1)  # segments that share no end with segment i
-        if not len(j):
-            continue
-        d1, d2 = orient(a[j], b[j], a[i]), orient(a[j], b[j], b[i])
-        d3, d4 = orient(a[i], b[i], a[j]), orient(a[i], b[i], b[j])
-        if np.any((d1 * d2 < 0) & (d3 * d4 < 0)):
-            return True
-    return False
+    return bool(self_intersections(loop))

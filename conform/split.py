@@ -199,14 +199,7 @@ def necks_of(outline: Outline, min_arc: float, count: int = 3) -> list[Dart]:
 
 def _crosses_outline(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the segment a-b crosses the closed polygon P anywhere but at its ends."""
-    q0, q1 = P, np.roll(P, -1, axis=0)
-
-    def orient(p, r, t):
-        return (r[..., 0] - p[..., 0]) * (t[..., 1] - p[..., 1]) - (r[..., 1] - p[..., 1]) * (t[..., 0] - p[..., 0])
-
-    d1, d2 = orient(q0, q1, a), orient(q0, q1, b)
-    d3, d4 = orient(a, b, q0), orient(a, b, q1)
-    return bool(np.any((d1 * d2 < 0) & (d3 * d4 < 0)))
+    return bool(np.any(_crossing(a, b, P, np.roll(P, -1, axis=0))))
 
 
 def _ray_hit(points: np.ndarray, origin: np.ndarray, direction: np.ndarray, skip: set) -> tuple[int, float, float]:
@@ -228,13 +221,19 @@ def _ray_hit(points: np.ndarray, origin: np.ndarray, direction: np.ndarray, skip
     return k, float(t[k]), float(np.clip(f[k], 0.0, 1.0))
 
 
-def _segments_cross(p0, p1, q0, q1) -> bool:
+def _crossing(p0, p1, q0, q1) -> np.ndarray:
+    """Whether segments p0-p1 and q0-q1 cross at a point inside both (broadcasting over
+    leading axes; touching does not count)."""
     def orient(a, b, c):
-        return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+        return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
 
     d1, d2 = orient(q0, q1, p0), orient(q0, q1, p1)
     d3, d4 = orient(p0, p1, q0), orient(p0, p1, q1)
-    return d1 * d2 < 0 and d3 * d4 < 0
+    return (d1 * d2 < 0) & (d3 * d4 < 0)
+
+
+def _segments_cross(p0, p1, q0, q1) -> bool:
+    return bool(_crossing(np.asarray(p0), np.asarray(p1), np.asarray(q0), np.asarray(q1)))
 
 
 def _inside(poly: np.ndarray, p: np.ndarray) -> bool:

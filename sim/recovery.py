@@ -62,8 +62,7 @@ def step_with_recovery(sim, floor: float | None = None,
     try:
         stats = _advance(sim, dt, floor, warn, should_stop or (lambda: False))
     except (StepFailure, Interrupted):
-        sim.state = start
-        sim.set_dt(dt)
+        sim.state = start  # (dt is back: _advance restores it on the way out)
         raise
     # Two halves add up to dt only to round-off: keep the time grid of unsplit runs.
     if len(stats) > 1:

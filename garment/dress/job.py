@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 
-from conform.quality import folded
 from sim.errors import InputError, SimulationError
 from sim.files import atomic_write, output_folder
 
@@ -140,7 +139,7 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     # cut helped) is no valid cloth.
     bad = dict(ps.failures)
     bad.update({p.name: "its net folds over between quadrature points (no cut of the panel helped)"
-                for p in ps.patches if folded(p)})
+                for p in ps.patches if ps.quality[p.name]["folds"]})
     if bad:
         raise DressFailure("conform", "panels that did not conform: " + "; ".join(f"{k}: {v}" for k, v in bad.items()))
     up = pattern_up(pattern)
