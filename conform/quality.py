@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from sim.rest import point_data
 from sim.bspline import basis_matrix
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
+from sim.seams.mesh import THIN, Perimeter, rest_map, seamed_mesh
 
 from .boundary import Outline, self_intersections, signed_areas
 from .curve_fit import evaluate
@@ -153,12 +154,26 @@ def folded(patch, per_span: int = 4, density: float = 2.0) -> bool:
     """Whether the patch's map from parameters to its flat rest shape folds over anywhere:
     on a fine grid (`per_span` points per knot span) or on the simulator's contact mesh
     (sim.embedding.default_resolution at `density`), a triangle turned over or the
-    boundary crossing itself. The Jacobian checks look at quadrature points only; a
+    boundary crossing itself, or that mesh with seam vertices all round its boundary
+    turning a triangle over. The Jacobian checks look at quadrature points only; a
     narrow strap can fold between them, and a barely one-to-one net can overlap itself
     on the coarser contact mesh (its chords cut across)."""
     n, m = patch.shape
-    return any(_grid_folds(patch.rest.reshape(-1, 2), n, m, res)
-               for res in ((per_span * (n - 2) + 1, per_span * (m - 2) + 1), default_resolution(n, m, density)))
+    rest = patch.rest.reshape(-1, 2)
+    contact = default_resolution(n, m, density)
+    return (any(_grid_folds(rest, n, m, res) for res in ((per_span * (n - 2) + 1, per_span * (m - 2) + 1), contact))
+            or _seamed_folds(patch.rest, contact))
+
+
+def _seamed_folds(rest: np.ndarray, res: tuple[int, int]) -> bool:
+    """The simulator's mesh of a sewn piece (sim/seams/mesh.py) puts seam vertices on the
+    true boundary between the grid's: near a dart tip the grid's chords can pass outside
+    them. Seam vertices every THIN grid steps all round stand for any seams."""
+    n, m = rest.shape[:2]
+    per = Perimeter(n - 2.0, m - 2.0, *res)
+    place = rest_map(rest)
+    uv, faces, _ = seamed_mesh(per.U, per.V, res, [np.arange(0.0, per.length, THIN)], place)
+    return bool((signed_areas(place(uv), faces) <= 0).any())
 
 
 def _grid_folds(rest: np.ndarray, n: int, m: int, res: tuple[int, int]) -> bool:

@@ -361,7 +361,8 @@ def bspline_model(patches: list[Patch], materials: list[Material], pins: Iterabl
     if with_contact and contact.seams == "band":
         sewn_meshes, matched, unmatched = {}, [], list(seams)  # all kept out of contact
     else:
-        sewn_meshes, matched = seam_meshes({p.name: p.shape for p in patches}, resolutions, seams)
+        sewn_meshes, matched = seam_meshes({p.name: p.shape for p in patches}, resolutions, seams,
+                                           {p.name: p.rest for p in patches})
         unmatched = []
     pieces, vertex_offset, n_vertices = [], {}, 0
     for patch, material, off in zip(patches, materials, offsets):

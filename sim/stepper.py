@@ -65,6 +65,7 @@ def step(model: Model, state: State) -> StepStats:
     state.V = (C_new - state.C) / state.dt
     if sewing is not None and sewing.pulled_shut(t_next, state.dt):
         state.V[:] = 0.0
+        stats.extra["pulled_shut"] = 1.0
     state.C = C_new
     state.t = t_next
     state.step_count += 1
@@ -74,6 +75,12 @@ def step(model: Model, state: State) -> StepStats:
 
 
 REACH = 0.03  # m: the least cloth motion per step the contact region allows for
+
+
+class BeyondReach(RuntimeError):
+    """The cloth moved farther in a step than its contact region reached, and through
+    an obstacle left out of it. The model keeps the motion seen (cloth_motion), so the
+    step taken again gets a region that reaches that far (sim/recovery.py)."""
 
 
 def contact_reach(model: Model, state: State, x0: np.ndarray) -> float:
@@ -86,8 +93,8 @@ def contact_reach(model: Model, state: State, x0: np.ndarray) -> float:
 def _within_reach(model: Model, state: State, C_start, C_new, reach: float, stats: StepStats) -> np.ndarray:
     """C_new, when the cloth stayed within `reach` of where it started. Otherwise obstacle
     triangles beyond reach were left out of the step: with them added, the straight path
-    from the start must be collision free (else RuntimeError: the step is split, see
-    sim/recovery.py), and Newton carries on from C_new with every contact it can have."""
+    from the start must be collision free (else BeyondReach: the step is taken again with
+    the region widened, see sim/recovery.py), and Newton carries on from C_new with every contact it can have."""
     moved = _largest_motion(model, state.C, C_new)
     stats.extra["cloth_motion"] = model.cloth_motion = moved
     if moved <= reach:
@@ -102,7 +109,7 @@ def _within_reach(model: Model, state: State, C_start, C_new, reach: float, stat
     if not widened:
         return C_new
     if alpha < 1.0:
-        raise RuntimeError(f"the cloth moved {moved:.3g} m in one step, beyond the contact reach of "
+        raise BeyondReach(f"the cloth moved {moved:.3g} m in one step, beyond the contact reach of "
                            f"{reach:.3g} m, and through an obstacle left out")
     if model.friction is not None:
         model.friction.lag(state.C)

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay
 
-from ..embedding import grid_faces
+from ..embedding import grid_faces, interpolation_matrix
 
 THIN = 0.5  # keep seam samples at least this many grid steps apart (on both sides)
 CLEAR = 0.35  # drop grid boundary vertices closer than this (grid steps) to a seam vertex
@@ -146,10 +146,11 @@ def _unwrap(g: np.ndarray, period: float) -> np.ndarray:
     return np.concatenate([g[:1], g[0] + np.cumsum(d)])
 
 
-def seamed_mesh(U: float, V: float, resolution: tuple[int, int], sides: list[np.ndarray]):
+def seamed_mesh(U: float, V: float, resolution: tuple[int, int], sides: list[np.ndarray], place=None):
     """Mesh of one piece whose seams' points are vertices: per seam side, in seam order,
     either perimeter coordinates (S,) along the boundary (unwrapped) or uv points (S, 2)
-    of a seam that runs into the patch.
+    of a seam that runs into the patch. place(uv) -> (N, 2): the piece's flat rest shape
+    at uv (None: uv itself), where the ring's triangles must not turn over.
 
     Returns uv (Nv, 2), faces (Nf, 3) counter-clockwise in uv like grid_faces, and per
     seam side the vertex index of each of its points."""
@@ -202,7 +203,7 @@ def seamed_mesh(U: float, V: float, resolution: tuple[int, int], sides: list[np.
         vertex(g)
     outer_g, inner_uv = np.array(outer_g), np.array(inner_uv, float).reshape(-1, 2)
 
-    grid_uv, faces = _delaunay(per, outer_g, inner_uv) if len(inner_uv) else _zipped_ring(per, outer_g)
+    grid_uv, faces = _delaunay(per, outer_g, inner_uv) if len(inner_uv) else _zipped_ring(per, outer_g, place)
     n_grid = len(grid_uv)
     uv = np.concatenate([grid_uv, per.uv(outer_g), inner_uv])
     ids = [np.where(v >= 0, n_grid + v, n_grid + len(outer_g) - 1 - v) for v in seam_vertices]
@@ -217,10 +218,13 @@ def _inner_grid(per: Perimeter) -> np.ndarray:
     return np.c_[us[I.ravel()], vs[J.ravel()]]
 
 
-def _zipped_ring(per: Perimeter, outer_g: np.ndarray):
+def _zipped_ring(per: Perimeter, outer_g: np.ndarray, place=None):
     """The inner grid as it is, zipped to the outer loop by a ring of triangles: the inner
     grid's boundary loop placed at the perimeter coordinates of the outer vertices it faces.
-    Returns the inner grid's uv and all faces (outer loop numbered after the grid)."""
+    Where that order would turn a triangle over in the rest shape (place; a patch whose
+    boundary wraps round a dart tip crowds its rows there), the zip advances on the other
+    loop instead. Returns the inner grid's uv and all faces (outer loop numbered after the
+    grid)."""
     a, b, L = per.a, per.b, per.length
     nj = b - 2
     idx = lambda i, j: (i - 1) * nj + (j - 1)  # noqa: E731
@@ -239,17 +243,31 @@ def _zipped_ring(per: Perimeter, outer_g: np.ndarray):
     sO = np.r_[outer_g[order], outer_g[order[0]] + L]
     In = np.r_[inner_idx, inner_idx[:1]]
     sI = np.r_[inner_g, L]
+    grid = _inner_grid(per)
+    X = np.concatenate([grid, per.uv(outer_g)])
+    if place is not None:
+        X = place(X)
+
+    def turns_over(t) -> bool:
+        p, q, r = X[t[0]], X[t[1]], X[t[2]]
+        return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]) <= 0.0
+
     ring = []
     i = j = 0
     while i < len(O) - 1 or j < len(In) - 1:
-        if j == len(In) - 1 or (i < len(O) - 1 and sO[i + 1] <= sI[j + 1]):
+        outer = j == len(In) - 1 or (i < len(O) - 1 and sO[i + 1] <= sI[j + 1])
+        if i < len(O) - 1 and j < len(In) - 1:
+            along, across = (O[i], O[i + 1], In[j]), (O[i], In[j + 1], In[j])
+            if turns_over(along if outer else across) and not turns_over(across if outer else along):
+                outer = not outer
+        if outer:
             ring.append((O[i], O[i + 1], In[j]))
             i += 1
         else:
             ring.append((O[i], In[j + 1], In[j]))
             j += 1
     faces = np.concatenate([grid_faces(a - 2, nj), np.asarray(ring, np.int64)]).astype(np.int32)
-    return _inner_grid(per), faces
+    return grid, faces
 
 
 def _delaunay(per: Perimeter, outer_g: np.ndarray, inner_uv: np.ndarray):
@@ -267,12 +285,13 @@ def _delaunay(per: Perimeter, outer_g: np.ndarray, inner_uv: np.ndarray):
     return grid, np.ascontiguousarray(F, dtype=np.int32)
 
 
-def seam_meshes(shapes: dict, resolutions: dict, seams) -> tuple[dict, list]:
+def seam_meshes(shapes: dict, resolutions: dict, seams, rests: dict | None = None) -> tuple[dict, list]:
     """Meshes of the sewn pieces and the matched vertex pairs of every seam.
 
     shapes / resolutions: control-net shape (n, m) and contact-mesh grid (a, b) by piece
-    name; seams: sim.seams.SeamSpec. Returns {name: (uv, faces)} for the pieces with a
-    seam, and per seam (piece_a, vertices_a, piece_b, vertices_b), matched in order."""
+    name; seams: sim.seams.SeamSpec; rests: rest control nets (n, m, 2) by name, so no
+    triangle turns over in the rest shape. Returns {name: (uv, faces)} for the pieces with
+    a seam, and per seam (piece_a, vertices_a, piece_b, vertices_b), matched in order."""
     perimeters = {name: Perimeter(n - 2.0, m - 2.0, *resolutions[name]) for name, (n, m) in shapes.items()}
     sides: dict[str, list] = {}
     for s in seams:
@@ -287,12 +306,19 @@ def seam_meshes(shapes: dict, resolutions: dict, seams) -> tuple[dict, list]:
     meshes, vertices = {}, {}
     for name, gs in sides.items():
         per = perimeters[name]
-        uv, faces, seam_vertices = seamed_mesh(per.U, per.V, (per.a, per.b), gs)
+        place = None if rests is None else rest_map(rests[name])
+        uv, faces, seam_vertices = seamed_mesh(per.U, per.V, (per.a, per.b), gs, place)
         meshes[name] = (uv, faces)
         vertices[name] = iter(seam_vertices)
     # Seam sides were appended in seam order, a before b: hand them back the same way.
     pairs = [(s.piece_a, next(vertices[s.piece_a]), s.piece_b, next(vertices[s.piece_b])) for s in seams]
     return meshes, pairs
+
+
+def rest_map(rest: np.ndarray):
+    """uv (N, 2) -> the points of the rest net (n, m, 2) there."""
+    n, m = rest.shape[:2]
+    return lambda uv: interpolation_matrix(uv[:, 0], uv[:, 1], n, m, 0, n * m) @ rest.reshape(-1, 2)
 
 
 def _step(per: Perimeter) -> np.ndarray:

@@ -70,3 +70,33 @@ def test_the_strap_is_cut_across_its_base_and_the_slit_along_its_axis(tmp_path):
     np.testing.assert_allclose(notches[0].axis, [0.0, 1.0], atol=0.02)
     split = next(rescue_splits(panels[0], extract_outline(panels[0]), seams, ConformOptions(knot_span=0.04)))
     np.testing.assert_allclose(split.cuts[0].p1, [0.25, 0.60], atol=0.011)  # up to the waist
+
+
+# A piece of upper_garment_06's back torso (mm, 5 x 7 control points): its strap pinches
+# to 0.1 mm at row 3. Every grid of it is one-to-one, but the simulator's mesh of a sewn
+# piece, with seam vertices on the true boundary, turns triangles over there.
+PINCH = np.array([
+    [[3.41, 0.0], [3.92, 16.39], [3.85, 49.19], [3.11, 81.98], [1.96, 114.76], [0.66, 147.53], [0.0, 163.92]],
+    [[7.57, 0.34], [6.43, 13.98], [4.44, 50.93], [3.1, 82.1], [2.56, 113.29], [2.77, 149.96], [3.85, 163.98]],
+    [[15.9, 1.02], [11.6, 12.99], [5.47, 51.62], [3.17, 82.26], [3.53, 113.02], [7.45, 151.44], [11.55, 164.12]],
+    [[24.23, 1.7], [16.79, 14.22], [6.7, 50.54], [3.17, 82.4], [4.64, 114.43], [12.39, 150.96], [19.26, 164.25]],
+    [[28.39, 2.03], [19.37, 16.52], [7.73, 48.62], [3.05, 82.44], [5.52, 116.49], [15.05, 149.27], [23.11, 164.32]],
+]) * 1e-3
+
+
+def test_a_piece_whose_seamed_mesh_turns_over_counts_as_folded():
+    from types import SimpleNamespace
+
+    from conform.quality import _grid_folds, _seamed_folds
+    from sim.embedding import default_resolution
+
+    n, m = PINCH.shape[:2]
+    res = default_resolution(n, m, 2.0)
+    assert not _grid_folds(PINCH.reshape(-1, 2), n, m, res)  # the plain grid is fine
+    assert not _grid_folds(PINCH.reshape(-1, 2), n, m, (4 * (n - 2) + 1, 4 * (m - 2) + 1))
+    assert _seamed_folds(PINCH, res)
+    assert folded(SimpleNamespace(shape=(n, m), rest=PINCH))
+    # The same net widened to 4 mm at the pinch is a valid piece.
+    wide = PINCH.copy()
+    wide[:, :, 0] += np.linspace(0.0, 4e-3, n)[:, None] * np.exp(-((wide[:, :, 1] - 0.082) / 0.04) ** 2)
+    assert not folded(SimpleNamespace(shape=(n, m), rest=wide))

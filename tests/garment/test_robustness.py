@@ -20,6 +20,7 @@ from sim.checkpoint import read_checkpoint, write_checkpoint
 from sim.state import State
 from sim.driver import CheckpointPolicy, drive
 from sim.recovery import Interrupted, SplitWarning, StepFailure, step_with_recovery
+from sim.stepper import BeyondReach
 from garment.build import build_simulator, scene_hash
 from sim.simulator import Simulator
 from viz.recording import load_recording
@@ -133,6 +134,56 @@ def test_a_failing_step_is_split_in_halves():
     messages = []
     assert len(step_with_recovery(sim, on_warning=messages.append)) == 4
     assert len(messages) == 3 and sim.dt == 0.01
+
+
+def test_a_step_beyond_its_contact_reach_is_taken_again_whole():
+    # The first attempt moves the cloth beyond its contact region (BeyondReach, the model
+    # keeping the motion seen); the step is taken again at the same dt, not split.
+    scene = loads_scene(HANGING_SHEET)
+    sim, ref = build_simulator(scene), build_simulator(scene)
+    step, calls = sim.step, []
+
+    def wrapped():
+        calls.append(sim.dt)
+        if len(calls) == 1:
+            step()
+            raise BeyondReach("the cloth moved 0.05 m in one step, beyond the contact reach of 0.03 m")
+        return step()
+
+    sim.step = wrapped
+    stats = step_with_recovery(sim)
+    assert len(stats) == 1 and calls == [0.01, 0.01]
+    ref.step()
+    assert np.array_equal(sim.C, ref.C) and np.array_equal(sim.V, ref.V) and sim.t == ref.t
+    # Beyond reach twice: split as any failed step.
+    calls.clear()
+    sim.step = lambda: (calls.append(sim.dt), (_ for _ in ()).throw(BeyondReach("far")) if sim.dt > 0.006 else step())[1]
+    with pytest.warns(SplitWarning, match="BeyondReach"):
+        assert len(step_with_recovery(sim)) == 2
+    assert calls == [0.01, 0.01, 0.005, 0.005]
+
+
+def test_quasistatic_sewing_steps_are_kept_unconverged_other_steps_are_split():
+    scene = loads_scene(HANGING_SHEET)
+    sim = build_simulator(scene)
+    step = sim.step
+
+    def unconverged(pulled_shut):
+        def wrapped():
+            st = step()
+            st.converged, st.residual, st.newton_iterations = False, 1e3, sim.model.newton.max_iterations
+            if pulled_shut:
+                st.extra["pulled_shut"] = 1.0
+            return st
+        return wrapped
+
+    sim.step = unconverged(True)
+    messages = []
+    assert len(step_with_recovery(sim, on_warning=messages.append)) == 1 and not messages
+    sim.step = unconverged(False)
+    with pytest.raises(StepFailure, match="iteration cap"):
+        step_with_recovery(sim, on_warning=messages.append)
+    assert len(messages) == 4  # halves, quarters, ... down to the floor (dt / 16)
 
 
 def test_failure_at_the_floor_names_frame_and_cause_and_keeps_a_checkpoint(tmp_path):

@@ -148,3 +148,23 @@ def test_crossings_away_from_the_merged_pairs_stop_only_a_fresh_state_sewing(mon
     n = len(sim.model.seam_contact.pairs)
     assert merged == ([0, n, 0] if keep else [0, 0, 0])
     assert (sim.model.seam_contact.state == 1).all() == keep
+
+
+def test_the_ring_does_not_turn_over_in_the_rest_shape():
+    # A rest shape whose v = 0 side bulges in by 0.8 grid steps over a short stretch (as a
+    # boundary wrapping round a dart tip comes close to the grid's next row): zipped in
+    # perimeter order, ring triangles turn over there; the zip advances the other loop.
+    per = Perimeter(U, V, *RES)
+    du, dv = U / (RES[0] - 1), V / (RES[1] - 1)
+
+    def place(uv):
+        bulge = np.where(np.abs(uv[:, 1]) < 1e-12, 0.8 * dv * np.exp(-((uv[:, 0] - 1.5) / (0.6 * du)) ** 2), 0.0)
+        return uv + bulge[:, None] * [0.0, 1.0]
+
+    ga, _ = matched_points(np.linspace(0.5, 8.5, 17), np.linspace(8.5, 0.5, 17), per, per)
+    uv, F, _ = seamed_mesh(U, V, RES, [ga])
+    assert _areas(place(uv), F).min() < 0.0  # the order of the perimeter alone
+    uv, F, (verts,) = seamed_mesh(U, V, RES, [ga], place)
+    _check_tiling(uv, F)
+    assert _areas(place(uv), F).min() > 0.0
+    np.testing.assert_allclose(uv[verts], per.uv(ga), atol=1e-12)
