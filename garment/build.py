@@ -64,7 +64,7 @@ def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: 
     model = bspline_model(
         patches, materials, groups, scene.load.gravity, scene.load.pressure, directions, tm.dt, tm.mode,
         NewtonOptions.for_time(tm, newton), None if scene.garments else scene.output.mesh_resolution,
-        contact_options(scene.contact), obstacles, seams, stiffness or 1e6, sewing_options(scene, sewn),
+        contact_options(scene.contact), obstacles, seams, stiffness or 1e6, sewing_options(scene, sewn, tm.preroll),
         keep_crossings)
     model.loads.window = (scene.load.start, scene.load.start + scene.load.ramp)
     V0 = np.zeros_like(model.C0)
@@ -117,10 +117,11 @@ def contact_options(spec) -> ContactOptions:
     return ContactOptions(**{f.name: getattr(spec, f.name) for f in fields(ContactOptions)})
 
 
-def sewing_options(scene, ramp: float) -> SewingOptions:
-    """The sewing policy from a scene's [sewing] table, its sewing mode and the ramp (s)."""
+def sewing_options(scene, ramp: float, preroll: float = 0.0) -> SewingOptions:
+    """The sewing policy from a scene's [sewing] table, its sewing mode, the ramp and the
+    pre-roll (s)."""
     given = {f.name: getattr(scene.sewing, f.name) for f in fields(scene.sewing)}
-    return SewingOptions(ramp=ramp, quasistatic=scene.time.sewing == "quasistatic", **given)
+    return SewingOptions(ramp=ramp, quasistatic=scene.time.sewing == "quasistatic", preroll=preroll, **given)
 
 
 def _pins(scene, shapes, sizes, pick) -> list[PinGroup]:

@@ -54,9 +54,12 @@ def step(model: Model, state: State) -> StepStats:
         model.drive.advance(alpha)
         if model.stiffness is not None:
             stats.extra["kappa"] = model.stiffness.update(model.potential, x0)
-    C_new = minimize(model.potential, x0, model.newton, stats)
+    newton = model.newton
+    if sewing is not None and sewing.pulled_shut(t_next, state.dt):
+        newton = sewing.newton(newton)
+    C_new = minimize(model.potential, x0, newton, stats)
     if reach is not None:
-        C_new = _within_reach(model, state, C_start, C_new, reach, stats)
+        C_new = _within_reach(model, state, C_start, C_new, reach, stats, newton)
     if sewing is not None:
         stats.extra["seam_gap_max"] = sewing.after_step(C_new)
     if model.barrier is not None:
@@ -90,7 +93,8 @@ def contact_reach(model: Model, state: State, x0: np.ndarray) -> float:
     return max(REACH, 2.0 * model.cloth_motion, 2.0 * _largest_motion(model, state.C, x0))
 
 
-def _within_reach(model: Model, state: State, C_start, C_new, reach: float, stats: StepStats) -> np.ndarray:
+def _within_reach(model: Model, state: State, C_start, C_new, reach: float, stats: StepStats,
+                  newton) -> np.ndarray:
     """C_new, when the cloth stayed within `reach` of where it started. Otherwise obstacle
     triangles beyond reach were left out of the step: with them added, the straight path
     from the start must be collision free (else BeyondReach: the step is taken again with
@@ -113,7 +117,7 @@ def _within_reach(model: Model, state: State, C_start, C_new, reach: float, stat
                            f"{reach:.3g} m, and through an obstacle left out")
     if model.friction is not None:
         model.friction.lag(state.C)
-    return minimize(model.potential, C_new, model.newton, stats)
+    return minimize(model.potential, C_new, newton, stats)
 
 
 def _largest_motion(model: Model, C0: np.ndarray, C1: np.ndarray) -> float:

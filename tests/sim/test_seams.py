@@ -44,11 +44,11 @@ def test_open_seam_closes_and_stays_closed_without_barriers():
     assert st.converged
 
 
-def _ramped(quasistatic: bool, stiffness: float = 1e6) -> Simulator:
+def _ramped(quasistatic: bool, stiffness: float = 1e6, preroll: float = 0.0) -> Simulator:
     a = panel("a", (-0.215, -0.1, 0.0))
     b = panel("b", (0.015, -0.1, 0.0))
     return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
-                     seams=[edge_seam()], seam_stiffness=stiffness, sewing=SewingOptions(ramp=0.05, quasistatic=quasistatic)))
+                     seams=[edge_seam()], seam_stiffness=stiffness, sewing=SewingOptions(ramp=0.05, quasistatic=quasistatic, preroll=preroll)))
 
 
 def test_seam_ramp_starts_at_an_absolute_stiffness_and_ends_at_the_seams():
@@ -71,6 +71,17 @@ def test_quasistatic_sewing_drops_velocities_only_while_the_seams_ramp():
     dynamic = _ramped(False)
     dynamic.step()
     assert dynamic.V.any()
+
+
+def test_quasistatic_sewing_lasts_the_pre_roll_when_it_is_longer_than_the_ramp():
+    # The pre-roll goes on after the ramp while a shrunk body grows back: still pushed,
+    # not thrown, up to its end; then the cloth keeps its momentum.
+    sim = _ramped(True, preroll=0.08)
+    for _ in range(7):  # the steps ending before the pre-roll's end
+        sim.step()
+        assert not sim.V.any()
+    sim.step()
+    assert np.abs(sim.V[:, 2]).min() > 0.05
 
 
 def test_scene_sewing_mode_is_checked():

@@ -133,3 +133,29 @@ def test_dress_command_refuses_unknown_settings_and_scenes_without_a_body(tmp_pa
     assert main(["dress", str(scene), "-o", str(tmp_path / "o")]) == 2
     assert "needs a scene with [[garment]] source and an [[obstacle]] mesh" in capsys.readouterr().err
     assert not (tmp_path / "o" / "report.json").exists()
+
+
+def test_a_panel_pinched_to_nothing_is_named_with_where_it_pinches(tmp_path):
+    from conform.pipeline import ConformOptions
+    from garment.dress.job import _fold_reason
+
+    # A 40 x 30 cm torso with a 30 cm strap whose sides come within 0.5 mm of each other
+    # halfway up (upper_garment_06's back torso: 0.1 mm), and the same strap 2 cm wide there.
+    def strap(waist):
+        half = waist / 2
+        return [[0, 0], [40, 0], [40, 30], [22, 30], [20 + half, 45], [21, 60], [18, 60], [20 - half, 45],
+                [17, 30], [0, 30]]
+
+    options = ConformOptions(knot_span=0.04)
+    path = tmp_path / "pinched.json"
+    path.write_text(json.dumps({"pattern": {"panels": {"back": panel(strap(0.05), (0, 0, 0))}, "stitches": []},
+                                "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
+    panels, _ = read_garmentcode(path)
+    reason = _fold_reason("back.1.0", panels, options)
+    assert "panel back's outline narrows to" in reason and "(20.0, 45.0) cm" in reason
+    width = float(reason.split("narrows to ")[1].split(" mm")[0])
+    assert 0.5 <= width < 3.0
+    path.write_text(json.dumps({"pattern": {"panels": {"back": panel(strap(2.0), (0, 0, 0))}, "stitches": []},
+                                "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
+    panels, _ = read_garmentcode(path)
+    assert "narrows" not in _fold_reason("back.1.0", panels, options)
