@@ -17,6 +17,11 @@ from .potential import IncrementalPotential
 from .stats import StepStats
 
 
+class Interrupted(Exception):
+    """The caller's stop condition (a wall-clock limit) came true during a step
+    (IncrementalPotential.should_stop, asked before every iteration)."""
+
+
 @dataclass
 class NewtonOptions:
     tol: float = 1e-2  # m/s
@@ -66,6 +71,8 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
     # between steps, so a cloth that stays indefinite rarely pays for failed attempts.
     skip, wait = ip.projection_backoff
     for it in range(opts.max_iterations):
+        if ip.should_stop is not None and ip.should_stop():
+            raise Interrupted(f"stopped after {it} Newton iterations")
         try_exact = auto and skip == 0
         skip = max(skip - 1, 0)
         t0 = time.perf_counter()

@@ -38,6 +38,7 @@ class IncrementalPotential:
         # Called with each accepted Newton iterate; True when it changed an energy (the
         # adaptive barrier stiffness doubling within a step, sim/contact/stiffness.py).
         self.on_iterate = None
+        self.should_stop = None  # asked before every Newton iteration (sim/recovery.py)
 
     def refresh_constant(self) -> None:
         """(Re)assemble the constant Hessian terms (after a time-step change)."""

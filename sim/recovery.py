@@ -19,6 +19,7 @@ from sksparse.cholmod import CholmodError
 
 from sim.errors import SimulationError
 
+from .newton import Interrupted
 from .stats import StepStats
 from .stepper import BeyondReach
 
@@ -37,10 +38,6 @@ class StepFailure(Exception):
         super().__init__(f"t = {time:.6g} s: {cause}")
 
 
-class Interrupted(Exception):
-    """The caller's stop condition (a wall-clock limit) came true between sub-steps."""
-
-
 class SplitWarning(UserWarning):
     """A step was retried as two half steps."""
 
@@ -53,18 +50,23 @@ def step_with_recovery(sim, floor: float | None = None,
     floor: smallest time step tried (default dt / 2^DEFAULT_SPLITS). Raises StepFailure
     with `sim` restored to the state before the step when even steps of `floor` fail.
     Warnings go to `on_warning`, or through `warnings.warn` (SplitWarning) when None.
-    should_stop: asked before every retry and sub-step (a split step can take minutes);
-    when true, raises Interrupted with `sim` restored to the state before the step.
+    should_stop: asked before every retry and sub-step and every Newton iteration (one
+    step of a garment pressed to a body can take minutes); when true, raises Interrupted
+    with `sim` restored to the state before the step.
     """
     dt = sim.dt
     floor = dt / 2**DEFAULT_SPLITS if floor is None else floor
     start = sim.state.copy()
     warn = on_warning or (lambda msg: warnings.warn(msg, SplitWarning, stacklevel=3))
+    potential = sim.model.potential
+    potential.should_stop = should_stop
     try:
         stats = _advance(sim, dt, floor, warn, should_stop or (lambda: False))
     except (StepFailure, Interrupted):
         sim.state = start  # (dt is back: _advance restores it on the way out)
         raise
+    finally:
+        potential.should_stop = None
     # Two halves add up to dt only to round-off: keep the time grid of unsplit runs.
     if len(stats) > 1:
         sim.state.t = start.t + dt
