@@ -159,6 +159,13 @@ class PatchSet:
     source: str = ""
     splits: dict = field(default_factory=dict)
 
+    def panel_of(self, name: str) -> str:
+        """The pattern panel a patch was cut from (through nested splits), or its own name."""
+        parent = {piece: panel for panel, sp in self.splits.items() for piece in sp["patches"]}
+        while name in parent:
+            name = parent[name]
+        return name
+
     def patch(self, name: str) -> Patch:
         for p in self.patches:
             if p.name == name:

@@ -149,7 +149,7 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
         fit_to_body(ps.patches, body_V)
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, grow=(0.5 * options.sew_time,
                                                                                options.sew_time))
-    layout = separate(ps.patches, shrunk.at(0.0), body_F)
+    layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=[ps.panel_of(p.name) for p in ps.patches])
     save_patchset(outdir / "patches.json", ps)
     return layout.moved
 

@@ -96,17 +96,18 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
 TOUCH = 1e-3  # m: panels closer than this start inside each other's contact barrier
 
 
-def touching(patches, names, surface: _Surface | None = None) -> dict[tuple[int, int], np.ndarray]:
+def touching(patches, panels, surface: _Surface | None = None) -> dict[tuple[int, int], np.ndarray]:
     """Pairs of patches that touch without crossing: {(a, b): points (K, 3)}, sampled
     surface points of two patches closer than TOUCH (GarmentCode lays some panels corner
     to corner, e.g. a godet skirt's inserts). Contact would start at zero distance and
-    hold them still. Pieces of one split panel meet along their cuts by design: skipped."""
+    hold them still. Pieces of one split panel (`panels`: each patch's pattern panel)
+    meet along their cuts by design: skipped."""
     surface = surface or _Surface.of(patches)
     x = surface.vertices(patches)
     pairs = cKDTree(x).query_pairs(TOUCH, output_type="ndarray")
     if not len(pairs):
         return {}
-    root = np.array([n.split(".")[0] for n in names])
+    root = np.array(panels)
     a, b = surface.owner[pairs[:, 0]], surface.owner[pairs[:, 1]]
     keep = (a != b) & (root[a] != root[b])
     out: dict[tuple[int, int], list] = {}
@@ -175,10 +176,12 @@ def _distance_to_body(patches, tree: cKDTree) -> np.ndarray:
     return np.array([tree.query(p.world.reshape(-1, 3))[0].mean() for p in patches])
 
 
-def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, names=None) -> Layout:
+def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, names=None, panels=None) -> Layout:
     """Move patches (their world control points, in place) until none crosses the body or
-    another; raise PlacementError naming what still crosses. names: for messages."""
+    another; raise PlacementError naming what still crosses. names: for messages; panels:
+    the pattern panel each patch was cut from (default: its own name)."""
     names = names or [p.name for p in patches]
+    panels = panels or names
     layout = Layout()
     surface = _Surface.of(patches)
     ref = body_V if body_V is not None else np.concatenate([p.world.reshape(-1, 3) for p in patches]).mean(0)[None]
@@ -191,7 +194,7 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
     body_tree = cKDTree(body_V) if body_V is not None else None
     for layout.rounds in range(int(MOST / STEP) + 1):
         hits = crossings(patches, body_V, body_F, surface)
-        for pair, points in touching(patches, names, surface).items():
+        for pair, points in touching(patches, panels, surface).items():
             hits.setdefault(pair, points)
         self_hits = {k: v for k, v in hits.items() if k[0] == k[1]}
         if self_hits:

@@ -48,6 +48,7 @@ def test_a_panel_one_patch_cannot_cover_is_cut_into_pieces_that_do_not_fold(tmp_
     assert not ps.failures and not folds
     assert len(ps.patches) >= 2
     assert ps.splits["front"]["converted"]
+    assert {ps.panel_of(p.name) for p in ps.patches} == {"front"}  # through nested cuts too
     # Pieces cover the panel: their areas add up to it (exact 2 x 2 Gauss rule).
     assert abs(ps.splits["front"]["area_error_gauss2_pct"]) < 0.5
     # The cuts are seams between the pieces, mapped onto both patch boundaries.

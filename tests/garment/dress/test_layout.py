@@ -94,9 +94,11 @@ def test_panels_laid_corner_to_corner_are_moved_apart_but_pieces_of_one_panel_ar
     cut = [Patch.rectangle(f"back.{k}", (0.2, 0.3), (6, 8), origin=(-0.2 + 0.2 * k, -0.3, 0.8),
                            axis_u=(1, 0, 0), axis_v=(0, 0, 1)) for k in (0, 1)]
     patches = [a, b, *cut]
+    panels = ["ins_0", "ins_1", "back", "back"]  # the pieces' panel (PatchSet.panel_of)
     assert (0, 1) not in crossings(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32))
-    assert set(touching(patches, [p.name for p in patches])) == {(0, 1)}  # the corners meet
-    layout = separate(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32))
+    assert set(touching(patches, panels)) == {(0, 1)}  # the corners meet
+    assert set(touching(patches, [p.name for p in patches])) == {(0, 1), (2, 3)}  # as if two panels
+    layout = separate(patches, np.asarray(body.vertices), np.asarray(body.faces, np.int32), panels=panels)
     assert len({"ins_0", "ins_1"} & set(layout.moved)) == 1
     x = [mesh(p)[0] for p in patches]
     gap = np.linalg.norm(x[0][:, None] - x[1][None], axis=-1).min()
