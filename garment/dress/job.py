@@ -36,7 +36,7 @@ from sim.files import atomic_write, output_folder
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
-from .layout import PlacementError, separate
+from .layout import PlacementError, lift_over_body, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 
@@ -101,7 +101,8 @@ def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -
         frame, body_V, body_F = _body(body)
         report["body_frame"] = frame.describe()
         placed = place_garment(pattern, frame, body_V, body_F, options, outdir)
-        report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.items()}
+        report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.moved.items()}
+        report["lifted_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.lifted.items()}
         obstacle = {"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up}
         _simulate(dress_scene(outdir / "patches.json", obstacle, options), options, outdir, frame, report,
                   start, on_frame)
@@ -123,9 +124,10 @@ def _body(path: Path):
     return frame, to_scene_frame(V.astype(float), frame.scale, frame.up), F.astype(np.int32)
 
 
-def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOptions, outdir: Path) -> dict:
-    """Conform the pattern, bring it into the body's frame, move crossing panels apart
-    (against the body as shrunk at the start) and write outdir/patches.json."""
+def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: DressOptions, outdir: Path):
+    """Conform the pattern, bring it into the body's frame, lift the panels of seams that
+    would close through the body over it, move crossing panels apart (against the body as
+    shrunk at the start) and write outdir/patches.json. Returns the layout.Layout."""
     from conform.pipeline import ConformOptions, conform_all
 
     from ..io.garments import read_pattern
@@ -147,11 +149,15 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
         p.world = np.ascontiguousarray(to_scene_frame(p.world, 1.0, up))
     if up == "y":
         fit_to_body(ps.patches, body_V)
+    # Seams pulled shut through the body (a strap laid in front of a shoulder, its partner
+    # behind) press the cloth into it while the body grows back: over it, they close.
+    lifted = lift_over_body(ps.patches, ps.seams, body_V, body_F)
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, grow=(0.5 * options.sew_time,
                                                                                options.sew_time))
     layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=[ps.panel_of(p.name) for p in ps.patches])
+    layout.lifted = lifted
     save_patchset(outdir / "patches.json", ps)
-    return layout.moved
+    return layout
 
 
 PINCH = 3e-3  # m: a panel narrower than this somewhere is no cloth the contact mesh can hold

@@ -40,6 +40,7 @@ class Layout:
 
     moved: dict[str, float] = field(default_factory=dict)
     rounds: int = 0
+    lifted: dict[str, float] = field(default_factory=dict)  # lift_over_body, m
 
 
 @dataclass
@@ -233,6 +234,77 @@ def separate(patches, body_V: np.ndarray | None, body_F: np.ndarray | None, name
             offset[k] += CLEARANCE
     layout.moved = {names[k]: float(offset[k]) for k in np.flatnonzero(offset)}
     return layout
+
+
+LIFT_STEP = 0.02  # m, each round lifts the panels of a seam whose path crosses the body by this
+LIFT_MOST = 0.1  # m, in all: a strap needs a few centimetres to clear a shoulder
+
+
+def seams_through_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -> dict[str, np.ndarray]:
+    """Seams whose closing paths (straight from each sample to its partner) pass through
+    the body: {seam name: the crossing paths' midpoints (K, 3)}. Pulled shut, such a seam
+    presses its panels into the body (a shoulder strap laid in front of the shoulder and
+    its back partner behind it)."""
+    index = {p.name: p for p in patches}
+    ends, names = [], []
+    for s in seams:
+        if s.patch_a not in index or s.patch_b not in index:
+            continue
+        a, b = _at(index[s.patch_a], s.uv_a), _at(index[s.patch_b], s.uv_b)
+        far = np.linalg.norm(b - a, axis=1) > CLEARANCE
+        ends.append(np.stack([a[far], b[far]], axis=1))
+        names += [s.name] * int(far.sum())
+    if not names:
+        return {}
+    seg = np.concatenate(ends)
+    x = np.concatenate([seg.reshape(-1, 3), body_V])
+    edges = np.arange(2 * len(seg), dtype=np.int32).reshape(-1, 2)
+    faces = np.ascontiguousarray(body_F + 2 * len(seg), dtype=np.int32)
+    broad = ipctk.LBVH()
+    broad.build(np.asfortranarray(x), np.asfortranarray(edges), faces, 0.0)
+    found: dict[str, list] = {}
+    for c in broad.detect_edge_face_candidates():
+        e, f = edges[c.edge_id], faces[c.face_id]
+        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
+            found.setdefault(names[c.edge_id], []).append(0.5 * (x[e[0]] + x[e[1]]))
+    return {k: np.unique(np.array(v), axis=0) for k, v in found.items()}
+
+
+def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray,
+                   up=(0.0, 0.0, 1.0)) -> dict[str, float]:
+    """Lift (rigidly, along `up`) both panels of each seam whose closing paths pass
+    through the body, by the least multiple of LIFT_STEP (at most LIFT_MOST) that takes
+    every path over it: straps pulled shut over a shoulder, not into it. A seam that no
+    lift clears (an inner leg seam round a thigh) is left as it is. The panels' other
+    seams open by the lift and close again straight down. Returns each lifted patch's
+    lift (m)."""
+    up = np.asarray(up, float)
+    index = {p.name: p for p in patches}
+    lifted: dict[str, float] = {}
+    for s in seams:
+        if s.name not in seams_through_body(patches, [s], body_V, body_F):
+            continue
+        pair = {s.patch_a, s.patch_b}
+        if pair & set(lifted):
+            continue  # lifted already for another seam
+        start = {n: index[n].world.copy() for n in pair}
+        for k in range(1, int(round(LIFT_MOST / LIFT_STEP)) + 1):
+            for n in pair:
+                index[n].world = start[n] + k * LIFT_STEP * up
+            if not seams_through_body(patches, [s], body_V, body_F):
+                lifted.update({n: k * LIFT_STEP for n in pair})
+                break
+        else:
+            for n in pair:
+                index[n].world = start[n]
+    return lifted
+
+
+def _at(patch, uv) -> np.ndarray:
+    """World points (K, 3) of the patch at parameters uv (K, 2)."""
+    uv = np.asarray(uv, float)
+    n, m = patch.shape
+    return interpolation_matrix(uv[:, 0], uv[:, 1], n, m, 0, n * m) @ patch.world.reshape(-1, 3)
 
 
 def _away_from_body(patch, normal: np.ndarray, points: np.ndarray, body_V: np.ndarray, tree: cKDTree,

@@ -103,3 +103,41 @@ def test_panels_laid_corner_to_corner_are_moved_apart_but_pieces_of_one_panel_ar
     x = [mesh(p)[0] for p in patches]
     gap = np.linalg.norm(x[0][:, None] - x[1][None], axis=-1).min()
     assert gap > TOUCH
+
+
+def test_the_panels_of_a_seam_through_the_shoulder_are_lifted_over_it():
+    """Straps laid in front of and behind a shoulder (a box 1.40-1.45 m high): their
+    seam would close through it. Both are lifted by the least 2 cm steps that take every
+    closing path over the shoulder; a seam beside the body and one through the trunk
+    (no lift within 10 cm clears it) stay where they are."""
+    from garment.dress.layout import LIFT_STEP, lift_over_body, seams_through_body
+    from sim.seams.spec import PatchSeam
+
+    shoulder = trimesh.creation.box(extents=(0.3, 0.2, 0.5))
+    shoulder.apply_translation([0.0, 0.0, 1.2])  # top at 1.45 m
+    V, F = np.asarray(shoulder.vertices), np.asarray(shoulder.faces, np.int32)
+
+    def strap(name, y, top):
+        return Patch.rectangle(name, (0.06, 0.2), (5, 6), origin=(-0.03, y, top - 0.2), axis_u=(1, 0, 0),
+                               axis_v=(0, 0, 1))
+
+    def top_seam(name, a, b):
+        n, m = a.shape
+        uv = np.c_[np.linspace(0, n - 2, 7), np.full(7, m - 2.0)]
+        return PatchSeam(name, a.name, b.name, uv, uv.copy(), [], [])
+
+    front, back = strap("front", -0.15, 1.42), strap("back", 0.15, 1.42)
+    side_a, side_b = strap("side_a", -0.15, 1.42), strap("side_b", -0.15, 1.42)
+    side_a.world += [0.5, 0.0, 0.0]
+    side_b.world += [0.5, 0.05, 0.0]  # beside the body, 5 cm apart
+    trunk_a, trunk_b = strap("trunk_a", -0.15, 1.1), strap("trunk_b", 0.15, 1.1)  # 35 cm below the top
+    seams = [top_seam("shoulder", front, back), top_seam("side", side_a, side_b), top_seam("trunk", trunk_a, trunk_b)]
+    patches = [front, back, side_a, side_b, trunk_a, trunk_b]
+    before = {p.name: p.world.copy() for p in patches}
+    assert set(seams_through_body(patches, seams, V, F)) == {"shoulder", "trunk"}
+    lifted = lift_over_body(patches, seams, V, F)
+    # The tops at 1.42 m: 2 cm leaves the paths at 1.44 m, inside; 4 cm takes them over.
+    assert lifted == pytest.approx({"front": 2 * LIFT_STEP, "back": 2 * LIFT_STEP})
+    np.testing.assert_allclose(front.world - before["front"], np.broadcast_to([0, 0, 0.04], front.world.shape))
+    assert all(np.array_equal(p.world, before[p.name]) for p in patches[2:])
+    assert set(seams_through_body(patches, seams, V, F)) == {"trunk"}
