@@ -151,10 +151,11 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
         fit_to_body(ps.patches, body_V)
     # Seams pulled shut through the body (a strap laid in front of a shoulder, its partner
     # behind) press the cloth into it while the body grows back: over it, they close.
-    lifted = lift_over_body(ps.patches, ps.seams, body_V, body_F)
+    panels = [ps.panel_of(p.name) for p in ps.patches]
+    lifted = lift_over_body(ps.patches, ps.seams, body_V, body_F, panels)
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, grow=(0.5 * options.sew_time,
                                                                                options.sew_time))
-    layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=[ps.panel_of(p.name) for p in ps.patches])
+    layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=panels)
     layout.lifted = lifted
     save_patchset(outdir / "patches.json", ps)
     return layout

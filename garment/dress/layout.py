@@ -270,32 +270,38 @@ def seams_through_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -
     return {k: np.unique(np.array(v), axis=0) for k, v in found.items()}
 
 
-def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray,
+def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panels=None,
                    up=(0.0, 0.0, 1.0)) -> dict[str, float]:
-    """Lift (rigidly, along `up`) both panels of each seam whose closing paths pass
-    through the body, by the least multiple of LIFT_STEP (at most LIFT_MOST) that takes
-    every path over it: straps pulled shut over a shoulder, not into it. A seam that no
-    lift clears (an inner leg seam round a thigh) is left as it is. The panels' other
-    seams open by the lift and close again straight down. Returns each lifted patch's
-    lift (m)."""
+    """Lift (rigidly, along `up`) the panels of each seam whose closing paths pass through
+    the body, by the least multiple of LIFT_STEP (at most LIFT_MOST) that takes every path
+    over it: straps pulled shut over a shoulder, not into it. A seam that no lift clears
+    (an inner leg seam round a thigh) is left as it is. A panel moves with all its pieces
+    (`panels`: each patch's pattern panel; default its own name): a piece slid up its own
+    plane would overlap the piece below it. The panels' other seams open by the lift and
+    close again straight down. Returns each lifted patch's lift (m)."""
     up = np.asarray(up, float)
+    panels = panels or [p.name for p in patches]
     index = {p.name: p for p in patches}
+    group = dict(zip((p.name for p in patches), panels))
+    members: dict[str, list[str]] = {}
+    for name, panel in group.items():
+        members.setdefault(panel, []).append(name)
     lifted: dict[str, float] = {}
     for s in seams:
-        if s.name not in seams_through_body(patches, [s], body_V, body_F):
+        if s.patch_a not in group or s.patch_b not in group:
             continue
-        pair = {s.patch_a, s.patch_b}
-        if pair & set(lifted):
-            continue  # lifted already for another seam
-        start = {n: index[n].world.copy() for n in pair}
+        move = set(members[group[s.patch_a]]) | set(members[group[s.patch_b]])
+        if move & set(lifted) or s.name not in seams_through_body(patches, [s], body_V, body_F):
+            continue  # clear, or lifted already for another seam
+        start = {n: index[n].world.copy() for n in move}
         for k in range(1, int(round(LIFT_MOST / LIFT_STEP)) + 1):
-            for n in pair:
+            for n in move:
                 index[n].world = start[n] + k * LIFT_STEP * up
             if not seams_through_body(patches, [s], body_V, body_F):
-                lifted.update({n: k * LIFT_STEP for n in pair})
+                lifted.update({n: k * LIFT_STEP for n in move})
                 break
         else:
-            for n in pair:
+            for n in move:
                 index[n].world = start[n]
     return lifted
 

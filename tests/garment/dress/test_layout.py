@@ -141,3 +141,11 @@ def test_the_panels_of_a_seam_through_the_shoulder_are_lifted_over_it():
     np.testing.assert_allclose(front.world - before["front"], np.broadcast_to([0, 0, 0.04], front.world.shape))
     assert all(np.array_equal(p.world, before[p.name]) for p in patches[2:])
     assert set(seams_through_body(patches, seams, V, F)) == {"trunk"}
+    # A strap cut from a torso panel takes the torso along (sliding up its own plane,
+    # it would overlap it).
+    for p in patches:
+        p.world = before[p.name].copy()
+    torso = strap("front_torso", -0.15, 1.22)
+    lifted = lift_over_body(patches + [torso], seams, V, F, panels=[
+        "front", "back", "side_a", "side_b", "trunk_a", "trunk_b", "front"])
+    assert lifted == pytest.approx({"front": 0.04, "back": 0.04, "front_torso": 0.04})
