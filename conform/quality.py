@@ -15,13 +15,15 @@
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from sim.rest import point_data
 from sim.bspline import basis_matrix
-from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
-from sim.seams.mesh import THIN, Perimeter, rest_map, seamed_mesh
+from sim.embedding import default_resolution, grid_faces, interpolation_matrix, points_at, sample_grid
+from sim.seams.mesh import THIN, Perimeter, seamed_mesh
 
 from .boundary import Outline, self_intersections, signed_areas
 from .curve_fit import evaluate
@@ -171,7 +173,7 @@ def _seamed_folds(rest: np.ndarray, res: tuple[int, int]) -> bool:
     them. Seam vertices every THIN grid steps all round stand for any seams."""
     n, m = rest.shape[:2]
     per = Perimeter(n - 2.0, m - 2.0, *res)
-    place = rest_map(rest)
+    place = partial(points_at, rest)
     uv, faces, _ = seamed_mesh(per.U, per.V, res, [np.arange(0.0, per.length, THIN)], place)
     return bool((signed_areas(place(uv), faces) <= 0).any())
 

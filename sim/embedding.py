@@ -41,6 +41,13 @@ def interpolation_matrix(u: np.ndarray, v: np.ndarray, n: int, m: int, offset: i
     return sp.csr_matrix((val[ok], (rows, offset + I[ok] * m + J[ok])), shape=(P, n_cp))
 
 
+def points_at(net: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Points (K, d) of the control net (n, m, d) at parameters uv (K, 2)."""
+    uv = np.asarray(uv, float)
+    n, m = net.shape[:2]
+    return interpolation_matrix(uv[:, 0], uv[:, 1], n, m, 0, n * m) @ net.reshape(n * m, -1)
+
+
 def default_resolution(n: int, m: int, density: float) -> tuple[int, int]:
     """About `density` vertices per control point (garment.scene.ContactSpec.mesh_density)."""
     s = np.sqrt(density)

@@ -54,9 +54,8 @@ def step(model: Model, state: State) -> StepStats:
         model.drive.advance(alpha)
         if model.stiffness is not None:
             stats.extra["kappa"] = model.stiffness.update(model.potential, x0)
-    newton = model.newton
-    if sewing is not None and sewing.pulled_shut(t_next, state.dt):
-        newton = sewing.newton(newton)
+    pulled_shut = sewing is not None and sewing.pulled_shut(t_next, state.dt)
+    newton = sewing.newton(model.newton) if pulled_shut else model.newton
     C_new = minimize(model.potential, x0, newton, stats)
     if reach is not None:
         C_new = _within_reach(model, state, C_start, C_new, reach, stats, newton)
@@ -66,7 +65,7 @@ def step(model: Model, state: State) -> StepStats:
         stats.extra["contact_count"] = float(model.barrier.n_collisions)
         stats.extra["min_distance"] = model.barrier.min_distance(C_new)
     state.V = (C_new - state.C) / state.dt
-    if sewing is not None and sewing.pulled_shut(t_next, state.dt):
+    if pulled_shut:
         state.V[:] = 0.0
         stats.extra["pulled_shut"] = 1.0
     state.C = C_new

@@ -140,7 +140,7 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     # conform_all cuts a panel whose net folds over into pieces; one that still folds (no
     # cut helped) is no valid cloth.
     bad = dict(ps.failures)
-    bad.update({p.name: _fold_reason(p.name, panels, conform_options)
+    bad.update({p.name: _fold_reason(ps.panel_of(p.name), panels, conform_options)
                 for p in ps.patches if ps.quality[p.name]["folds"]})
     if bad:
         raise DressFailure("conform", "panels that did not conform: " + "; ".join(f"{k}: {v}" for k, v in bad.items()))
@@ -164,17 +164,15 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
 PINCH = 3e-3  # m: a panel narrower than this somewhere is no cloth the contact mesh can hold
 
 
-def _fold_reason(name: str, panels, options) -> str:
-    """Why a patch still folds after every cut: its panel's outline pinched to (almost)
-    nothing (a strap whose two sides meet), or in general a net no cut could untangle."""
+def _fold_reason(root: str, panels, options) -> str:
+    """Why a patch of pattern panel `root` still folds after every cut: the panel's outline
+    pinched to (almost) nothing (a strap whose two sides meet), or in general a net no cut
+    could untangle."""
     from conform.boundary import extract_outline
     from conform.pipeline import NECK_LOBE
     from conform.split import necks_of
 
     by_name = {p.name: p for p in panels}
-    root = name
-    while root not in by_name and "." in root:
-        root = root.rsplit(".", 1)[0]
     necks = necks_of(extract_outline(by_name[root]), NECK_LOBE * options.knot_span) if root in by_name else []
     if necks and min(n.depth for n in necks) < PINCH:
         n = min(necks, key=lambda n: n.depth)

@@ -20,7 +20,7 @@ import ipctk
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
+from sim.embedding import default_resolution, grid_faces, interpolation_matrix, points_at, sample_grid
 from sim.errors import InputError
 
 STEP = 0.004  # m, a panel's first push along its normal; each further push is one STEP longer
@@ -250,7 +250,7 @@ def seams_through_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -
     for s in seams:
         if s.patch_a not in index or s.patch_b not in index:
             continue
-        a, b = _at(index[s.patch_a], s.uv_a), _at(index[s.patch_b], s.uv_b)
+        a, b = points_at(index[s.patch_a].world, s.uv_a), points_at(index[s.patch_b].world, s.uv_b)
         far = np.linalg.norm(b - a, axis=1) > CLEARANCE
         ends.append(np.stack([a[far], b[far]], axis=1))
         names += [s.name] * int(far.sum())
@@ -287,12 +287,15 @@ def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panel
     for name, panel in group.items():
         members.setdefault(panel, []).append(name)
     lifted: dict[str, float] = {}
+    # Asked once for all seams: a lift changes only the seams of the panels it moves,
+    # and those are not lifted again.
+    through = seams_through_body(patches, seams, body_V, body_F)
     for s in seams:
-        if s.patch_a not in group or s.patch_b not in group:
+        if s.name not in through or s.patch_a not in group or s.patch_b not in group:
             continue
         move = set(members[group[s.patch_a]]) | set(members[group[s.patch_b]])
-        if move & set(lifted) or s.name not in seams_through_body(patches, [s], body_V, body_F):
-            continue  # clear, or lifted already for another seam
+        if move & set(lifted):
+            continue  # lifted already for another seam
         start = {n: index[n].world.copy() for n in move}
         for k in range(1, int(round(LIFT_MOST / LIFT_STEP)) + 1):
             for n in move:
@@ -304,13 +307,6 @@ def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panel
             for n in move:
                 index[n].world = start[n]
     return lifted
-
-
-def _at(patch, uv) -> np.ndarray:
-    """World points (K, 3) of the patch at parameters uv (K, 2)."""
-    uv = np.asarray(uv, float)
-    n, m = patch.shape
-    return interpolation_matrix(uv[:, 0], uv[:, 1], n, m, 0, n * m) @ patch.world.reshape(-1, 3)
 
 
 def _away_from_body(patch, normal: np.ndarray, points: np.ndarray, body_V: np.ndarray, tree: cKDTree,

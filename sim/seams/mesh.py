@@ -19,12 +19,14 @@ steps) over its grid, boundary loop and those points.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay
 
-from ..embedding import grid_faces, interpolation_matrix
+from ..embedding import grid_faces, points_at
 
 THIN = 0.5  # keep seam samples at least this many grid steps apart (on both sides)
 CLEAR = 0.35  # drop grid boundary vertices closer than this (grid steps) to a seam vertex
@@ -306,19 +308,13 @@ def seam_meshes(shapes: dict, resolutions: dict, seams, rests: dict | None = Non
     meshes, vertices = {}, {}
     for name, gs in sides.items():
         per = perimeters[name]
-        place = None if rests is None else rest_map(rests[name])
+        place = None if rests is None else partial(points_at, rests[name])
         uv, faces, seam_vertices = seamed_mesh(per.U, per.V, (per.a, per.b), gs, place)
         meshes[name] = (uv, faces)
         vertices[name] = iter(seam_vertices)
     # Seam sides were appended in seam order, a before b: hand them back the same way.
     pairs = [(s.piece_a, next(vertices[s.piece_a]), s.piece_b, next(vertices[s.piece_b])) for s in seams]
     return meshes, pairs
-
-
-def rest_map(rest: np.ndarray):
-    """uv (N, 2) -> the points of the rest net (n, m, 2) there."""
-    n, m = rest.shape[:2]
-    return lambda uv: interpolation_matrix(uv[:, 0], uv[:, 1], n, m, 0, n * m) @ rest.reshape(-1, 2)
 
 
 def _step(per: Perimeter) -> np.ndarray:
