@@ -38,6 +38,11 @@ class ContactMesh:
         self.obstacle_vertices = (np.concatenate([o.at(0.0) for o in self.obstacles])
                                   if self.obstacles else np.zeros((0, 3)))
         self._rest = np.asarray(rest, float)
+        # The obstacles' rest shape, for ipctk's rest areas (the barrier's area weights):
+        # fixed, so a mesh rebuilt by focus() weighs contacts the same whenever it is
+        # rebuilt (a resumed run rebuilds at another moment than the straight one).
+        self._obstacle_rest = (np.concatenate([np.asarray(o.vertices, float) for o in self.obstacles])
+                               if self.obstacles else np.zeros((0, 3)))
         self.cloth_faces = np.ascontiguousarray(cloth_faces, dtype=np.int32)
         body, offset = [], 0
         for o in self.obstacles:
@@ -64,7 +69,7 @@ class ContactMesh:
         self.body_ids = ids
         self.faces = np.ascontiguousarray(np.concatenate([self.cloth_faces, faces + self.n_cloth]), dtype=np.int32)
         edges = ipctk.edges(self.faces)
-        V = np.concatenate([self._rest, self.active(self.obstacle_vertices)])
+        V = np.concatenate([self._rest, self.active(self._obstacle_rest)])
         self.mesh = ipctk.CollisionMesh(np.asfortranarray(V), edges, self.faces)
         filters = []
         n_obstacle = V.shape[0] - self.n_cloth
