@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from garment.dress.layout import CLEARANCE, PlacementError, crossings, separate
+from garment.dress.layout import CLEARANCE, PlacementError, _Body, crossings, outward_normals, separate
 from garment.verify import intersecting_triangles
+from tests.support.paths import SHARED_ASSETS
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from sim.patches import Patch
 
@@ -149,3 +150,32 @@ def test_the_panels_of_a_seam_through_the_shoulder_are_lifted_over_it():
     lifted = lift_over_body(patches + [torso], seams, V, F, panels=[
         "front", "back", "side_a", "side_b", "trunk_a", "trunk_b", "front"])
     assert lifted == pytest.approx({"front": 0.04, "back": 0.04, "front_torso": 0.04})
+
+
+@pytest.mark.skipif(not (SHARED_ASSETS / "patterns_garmentcode" / "mean_all.obj").exists(), reason="shared assets missing")
+def test_a_point_in_front_of_the_shrunk_knee_is_outside():
+    # dress_06's front skirt piece has its middle 17 cm in front of the knee. On the body
+    # as shrunk at the start of sewing (legs a few centimetres thick) all 8 nearest
+    # triangles faced away from it, so it was judged inside, pushed "out" by 15 cm into
+    # the body and the layout refused.
+    from garment.dress.job import DressOptions, _body
+    from garment.io.obstacles import ObstacleGeometry
+
+    _, V, F = _body(SHARED_ASSETS / "patterns_garmentcode" / "mean_all.obj")
+    o = DressOptions()
+    shrunk = ObstacleGeometry("body", V, F, inset=o.inset, grow=(0.5 * o.sew_time, o.sew_time)).at(0.0)
+    body = _Body(shrunk, F)
+    points = np.array([[0.262, -0.171, 0.461], [0.0, 0.0, 1.0], [0.0, -0.3, 1.0]])  # the piece, the torso, the front
+    assert body.inside(points).tolist() == [False, True, False]
+
+
+def test_inside_holds_far_from_the_surface_and_on_an_open_mesh():
+    # The body as a tube without caps (a body mesh with holes), its faces wound inwards:
+    # the winding number still tells the axis (inside) from points 2 cm and 30 cm out.
+    tube = trimesh.creation.cylinder(radius=0.1, height=1.0, sections=32)
+    keep = np.abs(tube.face_normals[:, 2]) < 0.5
+    V, F = np.asarray(tube.vertices), np.asarray(tube.faces[keep][:, ::-1], np.int32)
+    body = _Body(V, F)
+    points = np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.3], [0.12, 0.0, 0.0], [0.0, -0.4, 0.1], [0.0, 0.0, 0.8]])
+    assert body.inside(points).tolist() == [True, True, False, False, False]
+    assert body.winding(points[:1])[0] == pytest.approx(1.0, abs=0.1)
