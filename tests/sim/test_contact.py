@@ -142,3 +142,33 @@ def test_friction_opposes_sliding():
     assert abs(g[:, 1].sum()) < 0.05 * g[:, 0].sum()  # no sideways force
     normal = np.abs(gb[:, 2].sum())
     assert g[:, 0].sum() == pytest.approx(0.3 * normal, rel=0.05)
+
+
+GRAZE = """
+[[cloth]]
+name = "sheet"
+size = [0.2, 0.2]
+control_points = [6, 6]
+origin = [-0.1, -0.1, 1e-8]
+[[obstacle]]
+name = "ground"
+plane = { point = [0, 0, 0], normal = [0, 0, 1], size = 1.0 }
+[contact]
+dhat = 1e-3
+kappa = 1e5
+[time]
+dt = 0.01
+"""
+
+
+def test_ccd_at_a_graze_is_exact():
+    """Cloth 1e-8 m above the ground (dressing pins straps that close to a shoulder): CCD
+    lets it slide a centimetre along the ground in one step, and a step down twice the gap
+    stops it at the conservative fraction of the first contact (0.9 x 1/2 = 0.45). Tight
+    Inclusion, conservative to its 1e-6 m tolerance, returned 0.375 there."""
+    sim = build_simulator(loads_scene(GRAZE))
+    barrier, C = sim.model.barrier, sim.C.copy()
+    assert barrier.max_step(C, C + [0.01, 0.004, 0.0]) == 1.0
+    alpha = barrier.max_step(C, C - [0.0, 0.0, 2e-8])
+    assert 0.40 < alpha < 0.5
+    assert barrier.min_distance(C - alpha * np.array([0.0, 0.0, 2e-8])) > 0.0

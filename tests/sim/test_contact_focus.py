@@ -68,3 +68,20 @@ def test_trajectories_with_and_without_the_focus_agree(monkeypatch):
     C_whole, its_whole = run()
     assert its_focus == its_whole
     np.testing.assert_allclose(C_focus, C_whole, rtol=0, atol=1e-5)
+
+
+SPINNING = DROP.format(height=0.1605).replace("subdivisions = 2}", "subdivisions = 2}\nspin = { axis = [1, 0, 0], speed = 3.0 }")
+
+
+def test_a_rebuilt_mesh_keeps_the_obstacles_rest_shape():
+    """ipctk's rest positions give the barrier's area weights: a mesh that focus() rebuilds
+    after the ball has turned keeps the ball's rest shape, so the contact energy does not
+    depend on when the mesh was last rebuilt (a resumed run rebuilds at another moment)."""
+    sim = build_simulator(loads_scene(SPINNING))
+    mesh = sim.model.barrier.contact
+    rest = np.concatenate([o.vertices for o in mesh.obstacles])
+    turned = np.concatenate([o.at(0.2) for o in mesh.obstacles])
+    assert np.abs(turned - rest).max() > 0.01  # the ball has turned a lot
+    mesh.move_obstacles(turned)
+    assert mesh.focus(sim.C, turned, 0.01)  # rebuilt, now with part of the ball
+    np.testing.assert_array_equal(mesh.mesh.rest_positions[mesh.n_cloth:], mesh.active(rest))
