@@ -29,6 +29,7 @@ from garment.io.garments import load_garment
 from garment.io.patchfile import save_patchset
 from garment.scene import load_scene
 from sim.materials import PRESETS
+from sim.recovery import step_with_recovery
 from sim.simulator import Simulator
 
 from .common import SCENES, step_summary
@@ -101,8 +102,10 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
         fine = min(round(SETTLE / sc.time.dt), preroll) if levels else 0
 
         def advance(sim, n, into):
+            # As a run takes its steps: a step that fails is taken again (split or with a
+            # wider contact region); its (sub)steps all count.
             for _ in range(n):
-                into.append(sim.step())
+                into.extend(step_with_recovery(sim, on_warning=lambda message: None))
                 if progress is not None:
                     progress(span_mm, into[-1])
 
