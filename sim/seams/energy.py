@@ -31,8 +31,8 @@ A penalty pulls with k w |gap|: 260 kN/m across a 26 mm gap at k = 1e7 N/m^2, 40
 what the cloth carries at 100 % strain. Where the cloth cannot follow (a strap pulled over
 a shrunk shoulder while the body grows back) that force presses it into the body until the
 barrier holds it at 1e-9..1e-17 m, and neither the body nor Newton moves any more
-(upper_garment_04). So while sewing, each sample's pull is capped at `cap` (N/m; the
-simulator: twice the cloth's E h), lagged: at the start of every step (`limit`) a sample pulling harder
+(upper_garment_04). So each sample's pull is capped at `cap` (N/m; the simulator: twice
+the cloth's E h), lagged: at the start of every step (`limit`) a sample pulling harder
 gets its stiffness scaled down to pull `cap` there, in quarter octaves so the constant
 Hessian changes only when a pull moves that far. Gaps below cap / k (0.13 mm for cotton
 at k = 1e7) are not touched, so a closed seam is held exactly as before.
@@ -117,14 +117,14 @@ class SeamEnergy(QuadraticEnergy):
         self.K = self.K0 * self.scale
         return True
 
-    def limit(self, C: np.ndarray, capped: bool = True) -> bool:
+    def limit(self, C: np.ndarray) -> bool:
         """Scale the stiffness of samples pulling harder than `cap` at C (the start of a
         step) so they pull about `cap`: factor 2^(-n/4), n the least whole number with
-        scale k |gap| 2^(-n/4) <= cap; `capped` False: the whole stiffness everywhere. A
-        function of C alone, so a resumed run gets the same. Returns whether anything
-        changed (the caller re-assembles constant Hessians)."""
+        scale k |gap| 2^(-n/4) <= cap. A function of C alone, so a resumed run gets the
+        same. Returns whether anything changed (the caller re-assembles constant
+        Hessians)."""
         pull = self.scale * self.k * self.samples.gaps(C)
-        over = (pull > self.cap) & capped
+        over = pull > self.cap
         factor = np.ones_like(pull)
         factor[over] = 2.0 ** (-np.ceil(4.0 * np.log2(pull[over] / self.cap[over])) / 4.0)
         if np.array_equal(factor, self.factor):

@@ -88,11 +88,7 @@ class Sewing:
             held = np.append(blocked_pairs, False)[self.sample_pair]
         waiting = self._waiting_samples(C, t, released)
         changed = self.energy.hold(~held & ~waiting, held & ~waiting)
-        # The pull is capped while sewing (the ramp and the pre-roll): a sewn seam holds
-        # with its whole stiffness. Capped for good, pants_00's crotch seam, pushed by the
-        # body, yielded to 0.4-1.1 mm and the legs never came to rest.
-        o = self.options
-        return self.energy.limit(C, capped=t < max(o.ramp, o.preroll)) or changed
+        return self.energy.limit(C) or changed
 
     def after_step(self, C_new: np.ndarray) -> float:
         """Multiplier update at the end of a step; returns the largest seam gap, m."""
