@@ -139,25 +139,20 @@ class SeamEnergy(QuadraticEnergy):
 
     def update_multipliers(self, C: np.ndarray) -> None:
         """lambda += k g at the state C that ended a step, where the gap shrank by 10 %
-        since the last update (full stiffness only: during the ramp the gaps are the
-        sewing's, not the seams' error), by at most max_step. Where the gap points against
-        lambda (the sides passed each other) lambda only shrinks, at most to zero."""
+        since the last update or points against lambda (full stiffness only: during the ramp the gaps are the
+        sewing's, not the seams' error), by at most max_step."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
-        # An overshot multiplier must be able to come down: frozen, it held two capped test
-        # panels 0.13 mm open the other way (contact held the gap at a step's end, the
-        # update added k g, the sides slid past). Flipping it instead kicked seams that
-        # swing about zero back and forth by max_step each step (pants_00 never came to rest).
-        overshot = (np.einsum("ij,ij->i", g, self.multipliers) < 0.0) & self.active
-        closing = (gaps < 0.9 * self.last_gaps) & self.active & ~overshot
-        for rows in (closing, overshot):
-            step = self.k[rows, None] * g[rows]
-            size = np.linalg.norm(step, axis=1)
-            step *= np.minimum(1.0, self.max_step[rows] / np.maximum(size, 1e-300))[:, None]
-            new = self.multipliers[rows] + step
-            if rows is overshot:
-                new[np.einsum("ij,ij->i", new, self.multipliers[rows]) < 0.0] = 0.0
-            self.multipliers[rows] = new
+        # A multiplier that overshot (the sides passed each other: the gap now points
+        # against it) is always corrected: that lowers its pull. Seen when contact held
+        # a gap at a step's end and its sides then slipped past each other: frozen, the
+        # multiplier held the seam open the other way (0.13 mm).
+        overshot = np.einsum("ij,ij->i", g, self.multipliers) < 0.0
+        closing = ((gaps < 0.9 * self.last_gaps) | overshot) & self.active
+        step = self.k[closing, None] * g[closing]
+        size = np.linalg.norm(step, axis=1)
+        step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]
+        self.multipliers[closing] += step
         self.last_gaps = gaps
 
     def set_scale(self, scale: float) -> None:
