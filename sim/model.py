@@ -428,9 +428,8 @@ def bspline_model(patches: list[Patch], materials: list[Material], pins: Iterabl
         k = np.broadcast_to(np.asarray(seam_stiffness, float), (len(seams),))
         counts = [len(s.uv_a) for s in seams]
         by_name = {p.name: p.material for p in pieces}
-        E_h = np.array([by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in seams])
-        energy = SeamEnergy(samples, np.repeat(k, counts), np.repeat(sewing.multiplier_step * E_h, counts),
-                            sewing.held_fraction, np.repeat(sewing.max_pull * E_h, counts))
+        max_step = [sewing.multiplier_step * by_name[s.piece_a].E_st * by_name[s.piece_a].h for s in seams]
+        energy = SeamEnergy(samples, np.repeat(k, counts), np.repeat(max_step, counts), sewing.held_fraction)
         # Each sample pulls weakly while its nearest matched vertex pair is blocked (Sewing.hold).
         rest_vertices = np.concatenate([p.topology.rest for p in pieces])
         sample_pair = nearest_pairs(

@@ -370,9 +370,6 @@ class SewingSpec:
                                     "pleat's tucks are within this gap, or from pleat_wait_end on")
     pleat_wait_end: float = key(0.6, unit="s", ge=0,
                                 doc="a seam waiting for a pleat's tucks (pleat_wait_gap_mm) pulls from this time on")
-    max_pull: float = key(2.0, unit="E h", gt=0,
-                          doc="the most a seam pulls per unit length, in E h: a seam the cloth cannot follow "
-                              "otherwise presses it into the body with k x gap (sim/seams/energy.py)")
 
 
 @declare(

@@ -26,16 +26,6 @@ first update (lambda = k g everywhere at once) would otherwise double the pull o
 seam still held open by contact or by a patch too coarse to follow it (dress_knife at the
 end of its sewing ramp: 843 samples at 6-20 kN/m, up to 30x E h, and Newton at its cap
 down to dt / 8); later updates keep adding while the gap keeps shrinking.
-
-A penalty pulls with k w |gap|: 260 kN/m across a 26 mm gap at k = 1e7 N/m^2, 400 times
-what the cloth carries at 100 % strain. Where the cloth cannot follow (a strap pulled over
-a shrunk shoulder while the body grows back) that force presses it into the body until the
-barrier holds it at 1e-9..1e-17 m, and neither the body nor Newton moves any more
-(upper_garment_04). So each sample's pull is capped at `cap` (N/m; the simulator: twice
-the cloth's E h), lagged: at the start of every step (`limit`) a sample pulling harder
-gets its stiffness scaled down to pull `cap` there, in quarter octaves so the constant
-Hessian changes only when a pull moves that far. Gaps below cap / k (0.13 mm for cotton
-at k = 1e7) are not touched, so a closed seam is held exactly as before.
 """
 
 from __future__ import annotations
@@ -66,11 +56,9 @@ class SeamEnergy(QuadraticEnergy):
     """stiffness: k in N/m^2, one for all samples or one per sample (S,) (garments sewn
     with different seams)."""
 
-    def __init__(self, samples: SeamSamples, stiffness, max_step=np.inf, held_fraction: float = 0.01,
-                 cap=np.inf):
+    def __init__(self, samples: SeamSamples, stiffness, max_step=np.inf, held_fraction: float = 0.01):
         """max_step: the largest change of a multiplier per update, N/m (one or one per
-        sample); held_fraction: of the stiffness, on held samples (`hold`); cap: the most
-        a sample pulls, N/m (one or one per sample; `limit`)."""
+        sample); held_fraction: of the stiffness, on held samples (`hold`)."""
         self.samples = samples
         self.held_fraction = float(held_fraction)
         D = (samples.Na - samples.Nb).tocsr()
@@ -78,8 +66,6 @@ class SeamEnergy(QuadraticEnergy):
         k = np.broadcast_to(np.asarray(stiffness, float), samples.weights.shape)
         self.k = k
         self.max_step = np.broadcast_to(np.asarray(max_step, float), samples.weights.shape)
-        self.cap = np.broadcast_to(np.asarray(cap, float), samples.weights.shape)
-        self.factor = np.ones(D.shape[0])  # of the stiffness, per sample (`limit`)
         self.active = np.ones(D.shape[0], bool)
         self.held = np.zeros(D.shape[0], bool)
         self.K0 = self._stiffness()
@@ -96,7 +82,7 @@ class SeamEnergy(QuadraticEnergy):
         out += self.D.T @ self._weighted_multipliers()
 
     def _stiffness(self) -> sp.csr_matrix:
-        pull = (self.active + self.held_fraction * self.held) * self.factor  # disjoint (hold)
+        pull = self.active + self.held_fraction * self.held  # disjoint (hold)
         return (self.D.T @ sp.diags(self.k * self.samples.weights * pull) @ self.D).tocsr()
 
     def hold(self, active: np.ndarray, held: np.ndarray | None = None) -> bool:
@@ -117,38 +103,16 @@ class SeamEnergy(QuadraticEnergy):
         self.K = self.K0 * self.scale
         return True
 
-    def limit(self, C: np.ndarray) -> bool:
-        """Scale the stiffness of samples pulling harder than `cap` at C (the start of a
-        step) so they pull about `cap`: factor 2^(-n/4), n the least whole number with
-        scale k |gap| 2^(-n/4) <= cap. A function of C alone, so a resumed run gets the
-        same. Returns whether anything changed (the caller re-assembles constant
-        Hessians)."""
-        pull = self.scale * self.k * self.samples.gaps(C)
-        over = pull > self.cap
-        factor = np.ones_like(pull)
-        factor[over] = 2.0 ** (-np.ceil(4.0 * np.log2(pull[over] / self.cap[over])) / 4.0)
-        if np.array_equal(factor, self.factor):
-            return False
-        self.factor = factor
-        self.K0 = self._stiffness()
-        self.K = self.K0 * self.scale
-        return True
-
     def _weighted_multipliers(self) -> np.ndarray:
         return self.samples.weights[:, None] * self.multipliers
 
     def update_multipliers(self, C: np.ndarray) -> None:
         """lambda += k g at the state C that ended a step, where the gap shrank by 10 %
-        since the last update or points against lambda (full stiffness only: during the ramp the gaps are the
+        since the last update (full stiffness only: during the ramp the gaps are the
         sewing's, not the seams' error), by at most max_step."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
-        # A multiplier that overshot (the sides passed each other: the gap now points
-        # against it) is always corrected: that lowers its pull. Seen when contact held
-        # a gap at a step's end and its sides then slipped past each other: frozen, the
-        # multiplier held the seam open the other way (0.13 mm).
-        overshot = np.einsum("ij,ij->i", g, self.multipliers) < 0.0
-        closing = ((gaps < 0.9 * self.last_gaps) | overshot) & self.active
+        closing = (gaps < 0.9 * self.last_gaps) & self.active
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]

@@ -35,7 +35,6 @@ class SewingOptions:
     preroll: float = 0.0  # s: with quasistatic, velocities are dropped up to here too
     multipliers: bool = True  # augmented-Lagrangian multipliers once at full stiffness
     multiplier_step: float = 2.0  # one multiplier update adds at most this many E h
-    max_pull: float = 2.0  # E h: the most a seam pulls per unit length (SeamEnergy.limit)
     block_reach: float = 10.0  # d_hat: open pairs closer than this are tested for blocking
     held_fraction: float = 0.01  # of the stiffness, on samples next to a blocked pair
     pleat_wait_gap: float = 3e-3  # m, tucks this close release a pleat face's seam
@@ -87,8 +86,7 @@ class Sewing:
         if blocked_pairs is not None:
             held = np.append(blocked_pairs, False)[self.sample_pair]
         waiting = self._waiting_samples(C, t, released)
-        changed = self.energy.hold(~held & ~waiting, held & ~waiting)
-        return self.energy.limit(C) or changed
+        return self.energy.hold(~held & ~waiting, held & ~waiting)
 
     def after_step(self, C_new: np.ndarray) -> float:
         """Multiplier update at the end of a step; returns the largest seam gap, m."""

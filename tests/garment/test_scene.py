@@ -241,7 +241,6 @@ block_reach = 8.0
 held_fraction = 0.05
 pleat_wait_gap_mm = 2.5
 pleat_wait_end = 0.4
-max_pull = 3.0
 """
 
 
@@ -255,7 +254,7 @@ def test_every_key_example_is_valid():
     assert scene.obstacles[5].smpl.end == 1.5
     assert scene.obstacles[0].spin.axis == (0.0, 0.0, 1.0)
     assert scene.contact.adaptive_kappa and scene.contact.kappa == ContactSpec().kappa
-    assert scene.sewing == SewingSpec(20.0, 1.5, 8.0, 0.05, 2.5e-3, 0.4, 3.0)
+    assert scene.sewing == SewingSpec(20.0, 1.5, 8.0, 0.05, 2.5e-3, 0.4)
     assert (scene.garments[0].knot_span, scene.garments[0].seam_span) == (0.04, 0.008)
 
 
@@ -286,7 +285,7 @@ def test_module_docstring_points_at_the_reference():
 def test_sewing_defaults_and_millimetres():
     assert loads_scene(CLOTH).sewing == SewingSpec()
     assert SewingSpec() == SewingSpec(ramp_start=10.0, multiplier_step=2.0, block_reach=10.0, held_fraction=0.01,
-                                      pleat_wait_gap=3e-3, pleat_wait_end=0.6, max_pull=2.0)
+                                      pleat_wait_gap=3e-3, pleat_wait_end=0.6)
     sewing = loads_scene(CLOTH + "[sewing]\npleat_wait_gap_mm = 5\nheld_fraction = 0\n").sewing
     assert sewing == SewingSpec(pleat_wait_gap=5e-3, held_fraction=0.0)
     assert isinstance(sewing.held_fraction, float)
