@@ -189,6 +189,10 @@ class Model:
         # Seams closed from the start (panels laid out edge to edge) start sewn.
         seams.state[seams.gaps(self.C0) < contact.dhat] = SEWN
         mesh, seams.labels = seams.mesh(self.C0, seams.state)
+        overlaps = seams.start_overlaps(mesh, mesh.vertices(self.C0), contact.dhat)
+        if overlaps:
+            seams.excluded |= overlaps
+            mesh, seams.labels = seams.mesh(self.C0, seams.state)
         self._set_piece_rows(mesh)
         x0 = mesh.vertices(self.C0)
         if ipctk.has_intersections(mesh.mesh, x0):
