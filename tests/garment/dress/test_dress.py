@@ -13,7 +13,7 @@ from scipy.sparse.csgraph import connected_components
 
 from garment.cli import main
 from garment.dress.frame import detect
-from garment.dress.job import dress
+from garment.dress.job import dress, verdict
 from garment.io.garmentcode import read_garmentcode
 from garment.verify import intersecting_triangles, shared_vertices
 
@@ -159,3 +159,13 @@ def test_a_panel_pinched_to_nothing_is_named_with_where_it_pinches(tmp_path):
                                 "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
     panels, _ = read_garmentcode(path)
     assert "narrows" not in _fold_reason("back", panels, options)
+
+
+def test_the_report_names_the_gravest_failure_first():
+    seams = {"stitch1": 2.5}
+    assert verdict(True, 3, 600.0, 2.5e-3, seams)[0] == "nan"
+    status, error = verdict(False, 16, 600.0, 2.5e-3, seams)  # crossings in a run that also timed out
+    assert status == "intersection" and error.startswith("16 intersecting")
+    assert verdict(False, 0, 600.0, 2.5e-3, seams) == ("timeout", "not at rest after 600 s of wall-clock time")
+    assert verdict(False, 0, None, 2.5e-3, seams) == ("sewing", "seams still open: stitch1 2.5 mm")
+    assert verdict(False, 0, None, 0.9996e-3, {"stitch1": 1.0}) == ("ok", None)
