@@ -100,15 +100,9 @@ class SeamContact:
         own = np.full(mesh.n_cloth, -1)
         own[self.labels[::-1]] = np.arange(self.n)[::-1]  # one own vertex of each contact vertex
         pairs = set()
-        for k in range(len(collisions)):
-            c = collisions[k]
-            v = [int(i) for i in c.vertex_ids(mesh.mesh.edges, mesh.mesh.faces) if i >= 0]
-            if max(v) >= mesh.n_cloth or not ring[v].any():
-                continue
-            if np.sqrt(c.compute_distance(c.dof(x, mesh.mesh.edges, mesh.mesh.faces))) >= TOUCH * dhat:
-                continue
-            split = 2 if len(v) == 4 and "EdgeEdge" in type(c).__name__ else 1
-            pairs.update((min(own[a], own[b]), max(own[a], own[b])) for a in v[:split] for b in v[split:] if a != b)
+        for v, split, d in _contacts(collisions, mesh.mesh, x):
+            if max(v) < mesh.n_cloth and ring[v].any() and d < TOUCH * dhat:
+                pairs.update((min(own[a], own[b]), max(own[a], own[b])) for a in v[:split] for b in v[split:] if a != b)
         return pairs
 
     def held_open(self) -> np.ndarray:
@@ -196,3 +190,18 @@ class SeamContact:
             return 0
         self.state, self.labels = state, labels
         return int(fresh.sum())
+
+
+def _contacts(collisions, mesh: ipctk.CollisionMesh, x: np.ndarray) -> list[tuple[list[int], int, float]]:
+    """(vertices, where the second primitive's start, distance) of every collision, as
+    plain numbers. ipctk hands out its collisions by reference into the set: a wrapper
+    that outlives the set is matched by pybind11 to whatever object is later built at the
+    same address (a segfault in the next model built), so none is kept."""
+    out = []
+    for k in range(len(collisions)):
+        c = collisions[k]
+        v = [int(i) for i in c.vertex_ids(mesh.edges, mesh.faces) if i >= 0]
+        split = 2 if len(v) == 4 and "EdgeEdge" in type(c).__name__ else 1
+        out.append((v, split, float(np.sqrt(c.compute_distance(c.dof(x, mesh.edges, mesh.faces))))))
+        del c
+    return out
