@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from . import quadrature
 from .contact.drive import BodyDrive
-from .contact.mesh import ContactMesh, crossing_parts
+from .contact.mesh import ContactMesh, crossing_parts, touching_parts
 from .contact.stiffness import AdaptiveStiffness
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
@@ -43,6 +43,9 @@ from .state import State
 
 # Contact-mesh vertices per control point when a model is built without contact settings.
 MESH_DENSITY = 2.0
+# A start closer than this (in d_hat) is a contact no step can move cloth off: CCD allows
+# none (dress_06's cut skirt front, its pieces 2.2e-17 m apart at the cut's end, never moved).
+TOUCH = 1e-6
 
 
 @dataclass
@@ -189,10 +192,6 @@ class Model:
         # Seams closed from the start (panels laid out edge to edge) start sewn.
         seams.state[seams.gaps(self.C0) < contact.dhat] = SEWN
         mesh, seams.labels = seams.mesh(self.C0, seams.state)
-        overlaps = seams.start_overlaps(mesh, mesh.vertices(self.C0), contact.dhat)
-        if overlaps:
-            seams.excluded |= overlaps
-            mesh, seams.labels = seams.mesh(self.C0, seams.state)
         self._set_piece_rows(mesh)
         x0 = mesh.vertices(self.C0)
         if ipctk.has_intersections(mesh.mesh, x0):
@@ -204,7 +203,21 @@ class Model:
         d = barrier.min_distance(self.C0)
         if d <= 0.0:
             raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
+        if d < TOUCH * contact.dhat:
+            raise InputError(self._touching_report(mesh, x0, contact.dhat))
         return barrier
+
+    def _touching_report(self, mesh: ContactMesh, x: np.ndarray, dhat: float, most: int = 3) -> str:
+        """The error for a start closer than round-off, naming the parts and where."""
+        def name(k):
+            return self.pieces[k].name if k >= 0 else f"obstacle {self.obstacles[-1 - k].name!r}"
+
+        found = sorted(touching_parts(mesh, x, dhat, TOUCH * dhat).items(), key=lambda kv: kv[1][1])
+        parts = [f"{name(a)} {'itself' if a == b else 'and ' + name(b)} ({n} pairs, {d:.2g} m at "
+                 f"({w[0]:.3f}, {w[1]:.3f}, {w[2]:.3f}) m)" for (b, a), (n, d, w) in found[:most]]
+        return ("the initial cloth touches itself or an obstacle at a distance of round-off, where no step can "
+                "move it off: " + ", ".join(parts) + ". Move them apart before starting (two pieces of one "
+                "panel cut at conform time: their outlines overlap at the cut's end)")
 
     def _crossing_report(self, mesh: ContactMesh, x: np.ndarray, most: int = 5) -> str:
         """The initial-intersection error, naming the parts that cross and how much."""

@@ -190,6 +190,31 @@ def crossing_parts(mesh: ContactMesh, x: np.ndarray) -> dict[tuple[int, int], in
     return counts
 
 
+def touching_parts(mesh: ContactMesh, x: np.ndarray, dhat: float, limit: float
+                   ) -> dict[tuple[int, int], tuple[int, float, np.ndarray]]:
+    """Which parts (as in crossing_parts) come closer than `limit` (m) at positions x:
+    {(a, b): (contacts, closest distance, where (3,))}. ipctk hands out its collisions by
+    reference into the set; a wrapper that outlives the set is matched by pybind11 to
+    whatever is built later at that address (a segfault), so each is dropped at once."""
+    sizes = [o.vertices.shape[0] for o in mesh.obstacles]
+    part = np.concatenate([np.asarray(mesh.piece_ids),
+                           mesh.active(np.repeat(-1 - np.arange(len(sizes)), sizes))]).astype(int)
+    collisions = ipctk.NormalCollisions()
+    collisions.build(mesh.mesh, x, dhat)
+    found: dict[tuple[int, int], tuple[int, float, np.ndarray]] = {}
+    for k in range(len(collisions)):
+        c = collisions[k]
+        v = [int(i) for i in c.vertex_ids(mesh.mesh.edges, mesh.mesh.faces) if i >= 0]
+        d = float(np.sqrt(c.compute_distance(c.dof(x, mesh.mesh.edges, mesh.mesh.faces))))
+        del c
+        if d >= limit:
+            continue
+        key = tuple(sorted((int(part[v[0]]), int(part[v[-1]]))))
+        n, best, where = found.get(key, (0, np.inf, None))
+        found[key] = (n + 1, min(best, d), x[v].mean(axis=0) if d < best else where)
+    return found
+
+
 def crossings_at(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int, vertices: np.ndarray) -> np.ndarray:
     """Those of `vertices` on an edge or triangle that crosses another (cloth or body)."""
     hit = set()

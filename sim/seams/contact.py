@@ -29,7 +29,6 @@ from ..contact.mesh import ContactMesh, cloth_crossings_at, crossing_pairs, cros
 from .mesh import mean_rows, merged_faces, merged_labels
 
 OPEN, SEWN, BLOCKED = 0, 1, 3  # states of a matched pair
-TOUCH = 1e-6  # of d_hat: a start this close is a contact of round-off (start_overlaps)
 APART = 2  # in checkpoints before refused merges were retried (kept apart for good): read as BLOCKED
 
 
@@ -78,32 +77,6 @@ class SeamContact:
             hit = cloth_crossings_at(mesh, x, np.r_[a, b], same)
             self.state[test] = np.where(np.isin(a, hit) | np.isin(b, hit), BLOCKED, OPEN)
         return self.held_open()
-
-    def start_overlaps(self, mesh: ContactMesh, x: np.ndarray, dhat: float) -> set[tuple[int, int]]:
-        """Cloth vertex pairs (i < j, own indices) to keep apart from contact: those of
-        cloth contacts at a distance of round-off (below TOUCH d_hat) at the start, next to
-        a sewn seam vertex. Two pieces cut from one panel and sewn back meet at the cut's
-        end, where their fitted boundaries overlap in their common plane by a fraction of a
-        millimetre (dress_06's skirt front: 2e-17 m between 8 edge pairs): no step can move
-        cloth off such a contact (CCD allows none), so the whole garment stayed where it
-        was laid out. There the two pieces are one cloth, as stitched neighbours are."""
-        collisions = ipctk.NormalCollisions()
-        collisions.build(mesh.mesh, x, dhat)
-        if len(collisions) == 0:
-            return set()
-        members = np.bincount(self.labels, minlength=mesh.n_cloth)
-        near = members > 1  # sewn seam vertices and their one ring
-        edges = mesh.mesh.edges[(mesh.mesh.edges < mesh.n_cloth).all(axis=1)]
-        ring = near.copy()
-        ring[edges[near[edges[:, 0]], 1]] = True
-        ring[edges[near[edges[:, 1]], 0]] = True
-        own = np.full(mesh.n_cloth, -1)
-        own[self.labels[::-1]] = np.arange(self.n)[::-1]  # one own vertex of each contact vertex
-        pairs = set()
-        for v, split, d in _contacts(collisions, mesh.mesh, x):
-            if max(v) < mesh.n_cloth and ring[v].any() and d < TOUCH * dhat:
-                pairs.update((min(own[a], own[b]), max(own[a], own[b])) for a in v[:split] for b in v[split:] if a != b)
-        return pairs
 
     def held_open(self) -> np.ndarray:
         """(P,) pairs the seam pulls only weakly: BLOCKED."""
@@ -190,18 +163,3 @@ class SeamContact:
             return 0
         self.state, self.labels = state, labels
         return int(fresh.sum())
-
-
-def _contacts(collisions, mesh: ipctk.CollisionMesh, x: np.ndarray) -> list[tuple[list[int], int, float]]:
-    """(vertices, where the second primitive's start, distance) of every collision, as
-    plain numbers. ipctk hands out its collisions by reference into the set: a wrapper
-    that outlives the set is matched by pybind11 to whatever object is later built at the
-    same address (a segfault in the next model built), so none is kept."""
-    out = []
-    for k in range(len(collisions)):
-        c = collisions[k]
-        v = [int(i) for i in c.vertex_ids(mesh.edges, mesh.faces) if i >= 0]
-        split = 2 if len(v) == 4 and "EdgeEdge" in type(c).__name__ else 1
-        out.append((v, split, float(np.sqrt(c.compute_distance(c.dof(x, mesh.edges, mesh.faces))))))
-        del c
-    return out
