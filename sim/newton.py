@@ -115,7 +115,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
                 stats.extra["capped_steps"] = stats.extra.get("capped_steps", 0) + 1
             trial[free] = C[free] + reach * step
             t_ccd = time.perf_counter()
-            alpha = reach * ip.max_step(C, trial, drive.target if moving else None)
+            alpha = reach * ip.max_step(C, trial, drive.target if moving else None, driven=moving)
             t_ccd = time.perf_counter() - t_ccd
             stats.t_ccd += t_ccd
             t3 += t_ccd  # the line-search time below excludes CCD

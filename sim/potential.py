@@ -112,10 +112,10 @@ class IncrementalPotential:
             y += B @ p - shift * p
         return y
 
-    def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:
+    def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None, driven: bool = False) -> float:
         """Largest fraction of C0 -> C1 every energy allows (collision-free for contact),
         with the bodies moving to B1 (when given) meanwhile."""
-        return min([1.0] + [e.max_step(C0, C1, B1) for e in self.variable])
+        return min([1.0] + [e.max_step(C0, C1, B1, driven) for e in self.variable])
 
     def coupling(self, C: np.ndarray, dB: np.ndarray) -> np.ndarray:
         """(n_cp, 3) first-order gradient change when the bodies move by dB."""

@@ -48,7 +48,8 @@ def step(model: Model, state: State) -> StepStats:
             model.friction.lag(state.C)
         C_start = np.where(model.pinned[:, None], targets, state.C)
         t_ccd = _time.perf_counter()
-        alpha = model.potential.max_step(C_start, x0, model.drive.target if model.drive.pending else None)
+        alpha = model.potential.max_step(C_start, x0, model.drive.target if model.drive.pending else None,
+                                         driven=model.drive.pending)
         stats.t_ccd += _time.perf_counter() - t_ccd
         x0 = C_start + alpha * (x0 - C_start)
         model.drive.advance(alpha)

@@ -128,11 +128,12 @@ class BarrierEnergy(ContactEnergy):
     def _prepare(self, C):
         self._update(C)
 
-    def max_step(self, C0, C1, B1=None) -> float:
+    def max_step(self, C0, C1, B1=None, driven: bool = False) -> float:
         """Largest alpha in [0, 1] such that C0 -> C0 + alpha (C1 - C0) is collision free,
-        with the obstacles moving linearly from where they are to B1 (if given) meanwhile."""
+        with the obstacles moving linearly from where they are to B1 (if given) meanwhile;
+        driven (the bodies' prescribed motion): and no pair closer than DRIVE_FLOOR d_hat."""
         x0, x1 = self.contact.vertices(C0), self.contact.vertices(C1, B1)
-        floor = 0.0 if B1 is None else DRIVE_FLOOR * self.dhat
+        floor = DRIVE_FLOOR * self.dhat if driven else 0.0
         return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, floor, None, self.ccd))
 
     def min_distance(self, C) -> float:

@@ -60,9 +60,10 @@ class Energy:
         True = "clamp", or "abs"; see PROJECTIONS)."""
         raise NotImplementedError
 
-    def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None) -> float:
+    def max_step(self, C0: np.ndarray, C1: np.ndarray, B1: np.ndarray | None = None, driven: bool = False) -> float:
         """Largest fraction of the step C0 -> C1 this energy allows (CCD for contact; the
-        bodies move to B1 meanwhile when given)."""
+        bodies move to B1 meanwhile when given; driven: that motion is the bodies'
+        prescribed one, which stops short of the cloth)."""
         return 1.0
 
     def coupling(self, C: np.ndarray, dB: np.ndarray) -> np.ndarray:

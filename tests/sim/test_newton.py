@@ -345,9 +345,9 @@ def _longest_ccd_move(max_speed: float) -> tuple[float, int]:
     sim = build_simulator(loads_scene(SLIDING), NewtonOptions(max_speed=max_speed))
     moves, ccd = [0.0], sim.model.potential.max_step
 
-    def max_step(C0, C1, B1=None):
+    def max_step(C0, C1, B1=None, driven=False):
         moves.append(float(np.abs(C1 - C0).max()))
-        return ccd(C0, C1, B1)
+        return ccd(C0, C1, B1, driven)
 
     sim.model.potential.max_step = max_step
     st = sim.step()
