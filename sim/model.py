@@ -207,11 +207,13 @@ class Model:
             raise InputError(self._touching_report(mesh, x0, contact.dhat))
         return barrier
 
+    def _part_name(self, k: int) -> str:
+        """Cloth piece k >= 0 or obstacle -1 - k (crossing_parts, touching_parts)."""
+        return self.pieces[k].name if k >= 0 else f"obstacle {self.obstacles[-1 - k].name!r}"
+
     def _touching_report(self, mesh: ContactMesh, x: np.ndarray, dhat: float, most: int = 3) -> str:
         """The error for a start closer than round-off, naming the parts and where."""
-        def name(k):
-            return self.pieces[k].name if k >= 0 else f"obstacle {self.obstacles[-1 - k].name!r}"
-
+        name = self._part_name
         found = sorted(touching_parts(mesh, x, dhat, TOUCH * dhat).items(), key=lambda kv: kv[1][1])
         parts = [f"{name(a)} {'itself' if a == b else 'and ' + name(b)} ({n} pairs, {d:.2g} m at "
                  f"({w[0]:.3f}, {w[1]:.3f}, {w[2]:.3f}) m)" for (b, a), (n, d, w) in found[:most]]
@@ -221,8 +223,7 @@ class Model:
 
     def _crossing_report(self, mesh: ContactMesh, x: np.ndarray, most: int = 5) -> str:
         """The initial-intersection error, naming the parts that cross and how much."""
-        def name(k):
-            return self.pieces[k].name if k >= 0 else f"obstacle {self.obstacles[-1 - k].name!r}"
+        name = self._part_name
 
         counts = sorted(crossing_parts(mesh, x).items(), key=lambda kv: -kv[1])
         if not counts:
