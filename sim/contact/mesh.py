@@ -176,13 +176,18 @@ def crossing_pairs(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int) -> se
     return pairs
 
 
-def crossing_parts(mesh: ContactMesh, x: np.ndarray) -> dict[tuple[int, int], int]:
-    """Which parts cross which at positions x (V, 3), and with how many edge-triangle
-    crossings: parts are cloth pieces 0, 1, ... (mesh.piece_ids) and obstacles -1, -2, ...
-    (in mesh.obstacles' order). Keys are sorted pairs; a piece crossing itself is (k, k)."""
+def _parts(mesh: ContactMesh) -> np.ndarray:
+    """The part of every ipctk mesh vertex: cloth pieces 0, 1, ... (mesh.piece_ids) and
+    obstacles -1, -2, ... (in mesh.obstacles' order)."""
     sizes = [o.vertices.shape[0] for o in mesh.obstacles]
     body = mesh.active(np.repeat(-1 - np.arange(len(sizes)), sizes))
-    part = np.concatenate([np.asarray(mesh.piece_ids), body]).astype(int)
+    return np.concatenate([np.asarray(mesh.piece_ids), body]).astype(int)
+
+
+def crossing_parts(mesh: ContactMesh, x: np.ndarray) -> dict[tuple[int, int], int]:
+    """Which parts (`_parts`) cross which at positions x (V, 3), and with how many
+    edge-triangle crossings. Keys are sorted pairs; a piece crossing itself is (k, k)."""
+    part = _parts(mesh)
     counts: dict[tuple[int, int], int] = {}
     for e, f in _crossings(mesh.mesh, x, mesh.n_cloth):
         a, b = sorted((int(part[e[0]]), int(part[f[0]])))
@@ -196,9 +201,7 @@ def touching_parts(mesh: ContactMesh, x: np.ndarray, dhat: float, limit: float
     {(a, b): (contacts, closest distance, where (3,))}. ipctk hands out its collisions by
     reference into the set; a wrapper that outlives the set is matched by pybind11 to
     whatever is built later at that address (a segfault), so each is dropped at once."""
-    sizes = [o.vertices.shape[0] for o in mesh.obstacles]
-    part = np.concatenate([np.asarray(mesh.piece_ids),
-                           mesh.active(np.repeat(-1 - np.arange(len(sizes)), sizes))]).astype(int)
+    part = _parts(mesh)
     collisions = ipctk.NormalCollisions()
     collisions.build(mesh.mesh, x, dhat)
     found: dict[tuple[int, int], tuple[int, float, np.ndarray]] = {}
