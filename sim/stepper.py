@@ -28,6 +28,11 @@ def step(model: Model, state: State) -> StepStats:
     stats.extra["seam_pairs_blocked"] = float(blocked.sum()) if blocked is not None else 0.0
     if sewing is not None and sewing.hold(state.C, state.t, state.pleat_faces, blocked):
         model.potential.refresh_constant()
+    if sewing is not None and model.barrier is not None:
+        contact = model.barrier.contact
+        if sewing.route(state.C, contact.obstacle_vertices, contact.body_faces):
+            model.potential.refresh_constant()
+        stats.extra["seam_samples_routed"] = float(sewing.energy.routed.sum())
     model.loads.set_time(t_next)
     targets = model.pin_targets(state.C, t_next)
     # Predictor C + dt V: the inertia target in dynamics, the secant (last increment)

@@ -26,6 +26,11 @@ first update (lambda = k g everywhere at once) would otherwise double the pull o
 seam still held open by contact or by a patch too coarse to follow it (dress_knife at the
 end of its sewing ramp: 843 samples at 6-20 kN/m, up to 30x E h, and Newton at its cap
 down to dt / 8); later updates keep adding while the gap keeps shrinking.
+
+A sample whose straight path passes through a body pulls each side to a waypoint p_s
+instead (sim/seams/routes.py): k/2 w_s (|S_a - p_s|^2 + |S_b - p_s|^2), still quadratic.
+Its Hessian k w_s (N_a^T N_a + N_b^T N_b) changes only with the set of routed samples;
+moving p_s changes only the linear term, so no constant Hessian is re-assembled for it.
 """
 
 from __future__ import annotations
@@ -68,6 +73,12 @@ class SeamEnergy(QuadraticEnergy):
         self.max_step = np.broadcast_to(np.asarray(max_step, float), samples.weights.shape)
         self.active = np.ones(D.shape[0], bool)
         self.held = np.zeros(D.shape[0], bool)
+        # Samples whose straight path passes through a body pull both sides to a waypoint
+        # instead (sim/seams/routes.py): E_s = k_s w_s / 2 (|a - p|^2 + |b - p|^2).
+        self.routed = np.zeros(D.shape[0], bool)
+        self.waypoints = np.zeros((D.shape[0], 3))
+        self._route_linear = np.zeros((D.shape[1], 3))  # -N^T (k w p) of both sides, full stiffness
+        self._route_constant = 0.0
         self.K0 = self._stiffness()
         self.K = self.K0
         self.scale = 1.0
@@ -75,15 +86,39 @@ class SeamEnergy(QuadraticEnergy):
         self.last_gaps = np.full(D.shape[0], np.inf)  # m, at the last multiplier update
 
     def value(self, C):
-        return super().value(C) + float(np.sum(self._weighted_multipliers() * (self.D @ C)))
+        return (super().value(C) + float(np.sum(self._weighted_multipliers() * (self.D @ C)))
+                + self.scale * (float(np.sum(self._route_linear * C)) + self._route_constant))
 
     def add_gradient(self, C, out):
         super().add_gradient(C, out)
         out += self.D.T @ self._weighted_multipliers()
+        out += self.scale * self._route_linear
 
     def _stiffness(self) -> sp.csr_matrix:
-        pull = self.active + self.held_fraction * self.held  # disjoint (hold)
-        return (self.D.T @ sp.diags(self.k * self.samples.weights * pull) @ self.D).tocsr()
+        routed = self.active & self.routed
+        pull = (self.active & ~routed) + self.held_fraction * self.held  # disjoint (hold)
+        K = self.D.T @ sp.diags(self.k * self.samples.weights * pull) @ self.D
+        if routed.any():
+            r = sp.diags(self.k * self.samples.weights * routed)
+            Na, Nb = self.samples.Na, self.samples.Nb
+            K = K + Na.T @ r @ Na + Nb.T @ r @ Nb
+        return K.tocsr()
+
+    def route(self, routed: np.ndarray, points: np.ndarray) -> bool:
+        """Pull the samples in `routed` (S,) bool to `points` (S, 3) from both sides
+        rather than straight to each other (sim/seams/routes.py). Returns whether the
+        stiffness changed (the caller must then re-assemble constant Hessians); new
+        points alone change only the linear term."""
+        routed = np.asarray(routed, bool)
+        changed = not np.array_equal(routed, self.routed)
+        self.routed, self.waypoints = routed, np.asarray(points, float)
+        self._route_terms()
+        if changed:
+            self.multipliers[routed] = 0.0
+            self.last_gaps[routed] = np.inf
+            self.K0 = self._stiffness()
+            self.K = self.K0 * self.scale
+        return changed
 
     def hold(self, active: np.ndarray, held: np.ndarray | None = None) -> bool:
         """Pull the samples in `active` (S,) bool, those in `held` with held_fraction x
@@ -101,7 +136,14 @@ class SeamEnergy(QuadraticEnergy):
         self.last_gaps[~active] = np.inf
         self.K0 = self._stiffness()
         self.K = self.K0 * self.scale
+        self._route_terms()
         return True
+
+    def _route_terms(self) -> None:
+        """The routed samples' linear and constant energy terms at full stiffness."""
+        r = (self.k * self.samples.weights * (self.routed & self.active))[:, None] * self.waypoints
+        self._route_linear = -(self.samples.Na.T @ r + self.samples.Nb.T @ r)
+        self._route_constant = float(np.sum(r * self.waypoints))
 
     def _weighted_multipliers(self) -> np.ndarray:
         return self.samples.weights[:, None] * self.multipliers
@@ -112,7 +154,7 @@ class SeamEnergy(QuadraticEnergy):
         sewing's, not the seams' error), by at most max_step."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
-        closing = (gaps < 0.9 * self.last_gaps) & self.active
+        closing = (gaps < 0.9 * self.last_gaps) & self.active & ~self.routed
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]
@@ -126,8 +168,9 @@ class SeamEnergy(QuadraticEnergy):
         self.K = self.K0 * self.scale
 
     def stencils(self):
-        """Control points of both sides of each sample."""
-        D = self.D
+        """Control points of both sides of each sample (both, even where they cancel in
+        D: a routed sample pulls each side on its own)."""
+        D = (abs(self.samples.Na) + abs(self.samples.Nb)).tocsr()
         counts = np.diff(D.indptr)
         out = -np.ones((D.shape[0], max(int(counts.max(initial=0)), 1)), np.int64)
         rows = np.repeat(np.arange(D.shape[0]), counts)

@@ -6,6 +6,9 @@ costs 100 Newton iterations and CCD-limited steps; weak springs close them over 
 pre-roll, and the rising stiffness then holds them below 1 mm. The start is absolute, not
 a fraction of k: it is what grams of cloth across open gaps can take.
 
+An open sample whose straight path to its partner passes through a body pulls both sides
+to a waypoint beside the body instead (`route`, sim/seams/routes.py).
+
 Once a matched contact-vertex pair is nearly closed it merges (sim/seams/contact.py); a
 pair that cannot merge without cloth passing through cloth is blocked, and the samples
 nearest to it pull with `held_fraction` of the stiffness. A seam sewn onto a folded
@@ -22,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .energy import SeamEnergy
+from .routes import MIN_GAP, waypoints
 from .spec import SeamSpec
 
 
@@ -87,6 +91,29 @@ class Sewing:
             held = np.append(blocked_pairs, False)[self.sample_pair]
         waiting = self._waiting_samples(C, t, released)
         return self.energy.hold(~held & ~waiting, held & ~waiting)
+
+    def route(self, C: np.ndarray, body_V: np.ndarray, body_F: np.ndarray) -> bool:
+        """Send the open samples whose straight path passes through a body (body_V,
+        body_F: every obstacle as it stands) round it (sim/seams/routes.py). Returns
+        whether the stiffness changed."""
+        e = self.energy
+        a, b = e.samples.Na @ C, e.samples.Nb @ C
+        check = np.flatnonzero(e.active & (np.linalg.norm(a - b, axis=1) > MIN_GAP))
+        routed, points = np.zeros(len(a), bool), np.zeros_like(a)
+        if len(check) and len(body_F):
+            routed[check], points[check] = waypoints(a[check], b[check], body_V, body_F, self._tangents(a)[check])
+        if not routed.any() and not e.routed.any():
+            return False
+        return e.route(routed, points)
+
+    def _tangents(self, a: np.ndarray) -> np.ndarray:
+        """(S, 3) each sample's direction along its seam (side a; zero for a seam of one
+        sample): central differences of its neighbours, one-sided at the ends."""
+        t = np.zeros_like(a)
+        for lo, hi in zip(self.start[:-1], self.start[1:]):
+            if hi - lo > 1:
+                t[lo:hi] = np.gradient(a[lo:hi], axis=0)
+        return t
 
     def after_step(self, C_new: np.ndarray) -> float:
         """Multiplier update at the end of a step; returns the largest seam gap, m."""
