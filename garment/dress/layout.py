@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, points_at, sample_grid
 from sim.errors import InputError
+from sim.seams.routes import through
 
 STEP = 0.004  # m, a panel's first push along its normal; each further push is one STEP longer
 MOST = 0.15  # m, a panel is never moved further than this in all
@@ -258,28 +259,16 @@ def seams_through_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -
     presses its panels into the body (a shoulder strap laid in front of the shoulder and
     its back partner behind it)."""
     index = {p.name: p for p in patches}
-    ends, names = [], []
+    found: dict[str, np.ndarray] = {}
     for s in seams:
         if s.patch_a not in index or s.patch_b not in index:
             continue
         a, b = points_at(index[s.patch_a].world, s.uv_a), points_at(index[s.patch_b].world, s.uv_b)
         far = np.linalg.norm(b - a, axis=1) > CLEARANCE
-        ends.append(np.stack([a[far], b[far]], axis=1))
-        names += [s.name] * int(far.sum())
-    if not names:
-        return {}
-    seg = np.concatenate(ends)
-    x = np.concatenate([seg.reshape(-1, 3), body_V])
-    edges = np.arange(2 * len(seg), dtype=np.int32).reshape(-1, 2)
-    faces = np.ascontiguousarray(body_F + 2 * len(seg), dtype=np.int32)
-    broad = ipctk.LBVH()
-    broad.build(np.asfortranarray(x), np.asfortranarray(edges), faces, 0.0)
-    found: dict[str, list] = {}
-    for c in broad.detect_edge_face_candidates():
-        e, f = edges[c.edge_id], faces[c.face_id]
-        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
-            found.setdefault(names[c.edge_id], []).append(0.5 * (x[e[0]] + x[e[1]]))
-    return {k: np.unique(np.array(v), axis=0) for k, v in found.items()}
+        hit = through(a[far], b[far], body_V, body_F)
+        if hit.any():
+            found[s.name] = np.unique(0.5 * (a[far][hit] + b[far][hit]), axis=0)
+    return found
 
 
 def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panels=None,
