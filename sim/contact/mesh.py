@@ -195,27 +195,38 @@ def crossing_parts(mesh: ContactMesh, x: np.ndarray) -> dict[tuple[int, int], in
     return counts
 
 
-def touching_parts(mesh: ContactMesh, x: np.ndarray, dhat: float, limit: float
-                   ) -> dict[tuple[int, int], tuple[int, float, np.ndarray]]:
-    """Which parts (as in crossing_parts) come closer than `limit` (m) at positions x:
-    {(a, b): (contacts, closest distance, where (3,))}. ipctk hands out its collisions by
-    reference into the set; a wrapper that outlives the set is matched by pybind11 to
-    whatever is built later at that address (a segfault), so each is dropped at once."""
-    part = _parts(mesh)
+def _touching(mesh: ContactMesh, x: np.ndarray, dhat: float, limit: float):
+    """(vertex ids, distance) of every contact closer than `limit` (m) at positions x.
+    ipctk hands out its collisions by reference into the set; a wrapper that outlives the
+    set is matched by pybind11 to whatever is built later at that address (a segfault),
+    so each is read as plain numbers and dropped at once."""
     collisions = ipctk.NormalCollisions()
     collisions.build(mesh.mesh, x, dhat)
-    found: dict[tuple[int, int], tuple[int, float, np.ndarray]] = {}
     for k in range(len(collisions)):
         c = collisions[k]
         v = [int(i) for i in c.vertex_ids(mesh.mesh.edges, mesh.mesh.faces) if i >= 0]
         d = float(np.sqrt(c.compute_distance(c.dof(x, mesh.mesh.edges, mesh.mesh.faces))))
         del c
-        if d >= limit:
-            continue
+        if d < limit:
+            yield v, d
+
+
+def touching_parts(mesh: ContactMesh, x: np.ndarray, dhat: float, limit: float
+                   ) -> dict[tuple[int, int], tuple[int, float, np.ndarray]]:
+    """Which parts (as in crossing_parts) come closer than `limit` (m) at positions x:
+    {(a, b): (contacts, closest distance, where (3,))}."""
+    part = _parts(mesh)
+    found: dict[tuple[int, int], tuple[int, float, np.ndarray]] = {}
+    for v, d in _touching(mesh, x, dhat, limit):
         key = tuple(sorted((int(part[v[0]]), int(part[v[-1]]))))
         n, best, where = found.get(key, (0, np.inf, None))
         found[key] = (n + 1, min(best, d), x[v].mean(axis=0) if d < best else where)
     return found
+
+
+def touching_vertices(mesh: ContactMesh, x: np.ndarray, dhat: float, limit: float) -> np.ndarray:
+    """The contact vertices of every contact closer than `limit` (m) at positions x."""
+    return np.unique([i for v, _ in _touching(mesh, x, dhat, limit) for i in v]).astype(np.int64)
 
 
 def crossings_at(mesh: ipctk.CollisionMesh, x: np.ndarray, n_cloth: int, vertices: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from sim.errors import InputError
 from sim.materials import PRESETS
 from garment.scene import parse_scene
 from sim.checkpoint import read_checkpoint, write_checkpoint
+from sim.seams.contact import SEWN
 from sim.seams.sewing import SewingOptions
 from sim.simulator import Simulator
 
@@ -248,3 +249,21 @@ def test_pieces_touching_at_round_off_at_the_start_are_an_input_error_naming_the
     with pytest.raises(InputError, match=r"round-off.*b and a \(\d+ pairs, [0-9.e-]+ m at \(-?0\.00\d, "):
         bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
                       contact=ContactOptions(adaptive_kappa=True), seams=[edge_seam(u_b)], seam_stiffness=1e6)
+
+
+def test_an_open_pair_touching_the_other_piece_at_round_off_starts_sewn():
+    """Two pieces of one cut panel edge to edge in one plane (to round-off), one matched
+    pair parted 1.35 mm along the seam (the fitted boundaries beside dress_06's dart tip):
+    its side on a lies on b's boundary, 1e-12 m off. That pair starts sewn, so the sides
+    share a vertex and the start is a valid one (an error without: CCD allows no step)."""
+    a = panel("a", (-0.2, -0.1, 0.0))
+    b = panel("b", (0.0, -0.1, 1e-12))
+    seam = edge_seam()
+    seam.uv_b[12:19, 1] += 0.00135 / 0.2 * (N - 2)  # b's side slid 1.35 mm along the seam there
+    model = bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, -9.81), dt=0.01,
+                          contact=ContactOptions(adaptive_kappa=True), seams=[seam], seam_stiffness=1e6)
+    sc = model.seam_contact
+    gaps = sc.gaps(model.C0)
+    assert gaps.max() > model.barrier.dhat  # the parted pair, open by its gap alone
+    assert (sc.state == SEWN).all()
+    assert model.barrier.min_distance(model.C0) > 1e-6 * model.barrier.dhat
