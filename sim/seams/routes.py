@@ -69,7 +69,8 @@ def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
         A = np.broadcast_to(a[todo, None, :], w.shape).reshape(-1, 3)
         B = np.broadcast_to(b[todo, None, :], w.shape).reshape(-1, 3)
         W = w.reshape(-1, 3)
-        blocked = (through(A, W, V, F) | through(W, B, V, F)).reshape(len(todo), DIRECTIONS)
+        legs = through(np.concatenate([A, W]), np.concatenate([W, B]), V, F)  # one body BVH for both legs
+        blocked = (legs[:len(W)] | legs[len(W):]).reshape(len(todo), DIRECTIONS)
         length = np.linalg.norm(w - a[todo, None], axis=2) + np.linalg.norm(w - b[todo, None], axis=2)
         length[blocked | ~across] = np.inf
         best = np.argmin(length, axis=1)
