@@ -201,7 +201,7 @@ class Model:
             sewn, _ = seams.mesh(self.C0, np.full(len(seams.pairs), SEWN, np.int8))
             barrier.stencil_meshes = ((sewn.W, sewn.cloth_faces),)
         d = barrier.min_distance(self.C0)
-        if 0.0 < d < TOUCH * contact.dhat and self._sew_touching(seams, barrier):
+        if 0.0 < d < TOUCH * contact.dhat and self._sew_touching(seams, barrier, x0, d):
             d = barrier.min_distance(self.C0)
         if d <= 0.0:
             raise InputError(f"the initial cloth touches an obstacle or itself (distance {d:g} m)")
@@ -209,15 +209,15 @@ class Model:
             raise InputError(self._touching_report(barrier.contact, barrier.contact.vertices(self.C0), contact.dhat))
         return barrier
 
-    def _sew_touching(self, seams: SeamContact, barrier: BarrierEnergy) -> bool:
+    def _sew_touching(self, seams: SeamContact, barrier: BarrierEnergy, x: np.ndarray, before: float) -> bool:
         """Start sewn the open seam pairs that touch other cloth at round-off: pieces cut
         from one panel lie edge to edge, and where their fitted boundaries part by a
         little more than d_hat (dress_06's skirt front, 1.35 mm beside a dart tip) the
         unsewn vertex lies on the other piece's boundary, in its plane (2e-17 m). Sewn
         shut, the two sides share one vertex. Returns whether the mesh changed (kept only
-        when nothing crosses and nothing touches closer than before)."""
+        when nothing crosses and nothing touches closer than before). x: the contact
+        mesh's vertices at the start; before: its closest distance."""
         mesh = barrier.contact
-        x = mesh.vertices(self.C0)
         near = touching_vertices(mesh, x, barrier.dhat, TOUCH * barrier.dhat)
         sides = seams.labels[seams.pairs]
         fix = (seams.state == OPEN) & np.isin(sides, near).any(axis=1)
@@ -228,7 +228,6 @@ class Model:
         sewn, labels = seams.mesh(self.C0, state, like=mesh)
         if ipctk.has_intersections(sewn.mesh, sewn.vertices(self.C0)):
             return False
-        before = barrier.min_distance(self.C0)
         barrier.contact = sewn
         barrier.forget()
         if barrier.min_distance(self.C0) <= before:
