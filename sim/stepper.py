@@ -71,6 +71,9 @@ def step(model: Model, state: State) -> StepStats:
         stats.extra["contact_count"] = float(model.barrier.n_collisions)
         stats.extra["min_distance"] = model.barrier.min_distance(C_new)
     state.V = (C_new - state.C) / state.dt
+    # RMS control-point speed of the step, kept when velocities are dropped: how far from
+    # rest a quasi-static run is.
+    stats.extra["speed_rms"] = float(np.sqrt(np.mean(np.sum(state.V * state.V, axis=1))))
     if pulled_shut:
         state.V[:] = 0.0
         stats.extra["pulled_shut"] = 1.0

@@ -51,7 +51,8 @@ def demo_scene(out: Path, frames: int | None):
     place_garment(PATTERN, BodyFrame(1.0, "z", "m"), bind.vertices, bind.faces, options, folder)
     per_frame = options.dt * options.steps_per_frame
     frames = frames or int(round((PREROLL + SECONDS) / per_frame))
-    return dress_scene(folder / "patches.json", body_table(), options, preroll=PREROLL, frames=frames, name="demo")
+    return dress_scene(folder / "patches.json", body_table(), options, preroll=PREROLL, frames=frames, name="demo",
+                       settle="dynamic")
 
 
 def run(args) -> int:

@@ -8,6 +8,7 @@ import pytest
 
 from garment.commands.simulate import print_seam_summary
 from sim.model import ContactOptions, bspline_model
+from sim.pins import PinGroup, select
 from sim.errors import InputError
 from sim.materials import PRESETS
 from garment.scene import parse_scene
@@ -83,6 +84,35 @@ def test_quasistatic_sewing_lasts_the_pre_roll_when_it_is_longer_than_the_ramp()
         assert not sim.V.any()
     sim.step()
     assert np.abs(sim.V[:, 2]).min() > 0.05
+
+
+def _hammock(mode: str = "dynamic", settle: bool = False) -> Simulator:
+    """The two panels sewn flat, held at their far sides, sagging under gravity."""
+    a = panel("a", (-0.2, -0.1, 0.0))
+    b = panel("b", (0.0, -0.1, 0.0))
+    pins = [PinGroup(select(a.shape, sides=("u0",)), np.zeros(3)),
+            PinGroup(N * N + select(b.shape, sides=("u1",)), np.zeros(3))]
+    return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, pins, gravity=(0.0, 0.0, -9.81), dt=0.01,
+                                   mode=mode, seams=[edge_seam()], seam_stiffness=1e6,
+                                   sewing=SewingOptions(settle=settle)))
+
+
+def test_quasistatic_settling_reaches_the_static_equilibrium_without_swinging():
+    static = _hammock("quasistatic")  # no inertia: each step is the static equilibrium
+    for _ in range(3):
+        assert static.step().converged
+    settled, swinging = _hammock(settle=True), _hammock()
+    speeds = []
+    for _ in range(30):
+        st = settled.step()
+        assert not settled.V.any()  # velocities dropped after every step...
+        speeds.append((st.extra["speed_rms"], swinging.step().extra["speed_rms"]))
+    # ... yet the step's own speed is reported: it falls below 1 cm/s and stays there,
+    # at the static equilibrium to Newton's tolerance (0.1 mm a step) ...
+    assert speeds[-1][0] < 0.01 and max(s for s, _ in speeds[20:]) < 0.02
+    assert np.abs(settled.C - static.C).max() < 1e-3
+    # ... while the dynamic hammock still bounces past it.
+    assert max(d for _, d in speeds[15:25]) > 0.03
 
 
 def test_scene_sewing_mode_is_checked():
