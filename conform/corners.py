@@ -88,8 +88,23 @@ def candidates(outline: Outline, hints=(), hints_only: bool = False, avoid=()) -
         # Too few turns (round shapes): add evenly spaced points.
         extra = np.searchsorted(outline.s[:-1], np.linspace(0, outline.perimeter, 12, endpoint=False))
         extra = np.minimum(extra, B - 1)
-        pool = np.unique(np.concatenate([pool, extra[~np.isin(extra, avoid)]]))
+        # None next to a candidate or an avoided point: an evenly spaced point one loop
+        # point past a seam's end is a corner that seam wraps round (skirt_06: a cut
+        # sewn up to a sharp tip, the corner 3 mm past it), and one beside a dart tip
+        # is that dart tip.
+        near = np.concatenate([pool, avoid])
+        pool = np.unique(np.concatenate([pool, extra[_clear_of(outline, extra, near, 0.5 * w)]]))
     return np.sort(pool)
+
+
+def _clear_of(outline: Outline, pos: np.ndarray, others: np.ndarray, gap: float) -> np.ndarray:
+    """(len(pos),) bool: loop positions farther than `gap` (arc length) from all `others`."""
+    if others.size == 0:
+        return np.ones(len(pos), bool)
+    s = outline.s[:-1]
+    d = np.abs(s[pos][:, None] - s[others][None, :])
+    d = np.minimum(d, outline.perimeter - d)
+    return ~(d <= gap).any(axis=1)
 
 
 def _cumulative_turning(outline: Outline) -> np.ndarray:

@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from conform import ConformOptions, conform_panel
 from conform.boundary import extract_outline
 from conform.control_net import boundary_area, match_area, refine, refine_1d, tangential_start
-from conform.corners import pick_corners
+from conform.corners import candidates, pick_corners
 from conform.curve_fit import evaluate, fit_side, fit_side_reweighted, sample_polyline
 from conform.mips import MipsOptions, MipsProblem, _newton_terms, _point_terms, det, rule_points
 from conform.mips import refine as mips_refine
@@ -204,6 +204,21 @@ def test_corners_ignore_mesh_noise_and_user_overrides_win():
     patch, rep = conform_panel(rect, ConformOptions(corners=user, knot_span=0.03))
     np.testing.assert_allclose(rep["provenance"]["corner_positions"], user, atol=3e-3)
     np.testing.assert_allclose(patch.rest[0, 0], [0.1, 0.0], atol=3e-3)
+
+
+def test_round_outline_fallback_corners_keep_off_a_seam_end_and_a_dart_tip():
+    # A round outline has no turn sharp enough for a corner, so evenly spaced points stand
+    # in; one of them a loop point from a seam's end would be a corner that seam wraps
+    # round (skirt_06: 0.23 spans, 2.1 mm off in the plane), one beside a dart tip that tip.
+    t = np.linspace(0.0, 2.0 * np.pi, 200, endpoint=False)
+    panel = Panel(name="disc", source="test", rest=0.3 * np.c_[np.cos(t), np.sin(t)])
+    outline = extract_outline(panel)
+    spaced = np.searchsorted(outline.s[:-1], np.linspace(0.0, outline.perimeter, 12, endpoint=False))
+    hint, tip = spaced[3] + 1, spaced[6] - 1  # one loop point from two of them
+    pool = candidates(outline, hints=[hint], avoid=[tip])
+    assert hint in pool and tip not in pool
+    assert spaced[3] not in pool and spaced[6] not in pool
+    assert set(spaced) - {spaced[3], spaced[6]} <= set(pool)  # the others stay
 
 
 # ------------------------------------------------------------------------- whole panels
