@@ -118,11 +118,11 @@ def contact_options(spec) -> ContactOptions:
 
 
 def sewing_options(scene, ramp: float, preroll: float = 0.0) -> SewingOptions:
-    """The sewing policy from a scene's [sewing] table, its sewing and settling modes, the
-    ramp and the pre-roll (s)."""
+    """The sewing policy from a scene's [sewing] table, its sewing mode and settling drag,
+    the ramp and the pre-roll (s)."""
     given = {f.name: getattr(scene.sewing, f.name) for f in fields(scene.sewing)}
     return SewingOptions(ramp=ramp, quasistatic=scene.time.sewing == "quasistatic", preroll=preroll,
-                         settle=scene.time.settle == "quasistatic", **given)
+                         settle_drag=scene.time.settle_drag, **given)
 
 
 def _pins(scene, shapes, sizes, pick) -> list[PinGroup]:

@@ -52,7 +52,7 @@ def demo_scene(out: Path, frames: int | None):
     per_frame = options.dt * options.steps_per_frame
     frames = frames or int(round((PREROLL + SECONDS) / per_frame))
     return dress_scene(folder / "patches.json", body_table(), options, preroll=PREROLL, frames=frames, name="demo",
-                       settle="dynamic")
+                       drag=False)
 
 
 def run(args) -> int:

@@ -147,9 +147,9 @@ class TimeSpec:
     preroll: float = key(0.0, doc="animated bodies hold their first pose this long first", unit="s", ge=0)
     sewing: str = key("dynamic", doc='"quasistatic": velocities dropped after each sewing step of the pre-roll',
                       choices=SEWING_MODES)
-    settle: str = key("dynamic", doc='"quasistatic": velocities dropped after every step after the pre-roll too: '
-                      "the garment goes to rest on still bodies without swinging (garment dress); motion is not "
-                      "followed", choices=SEWING_MODES)
+    settle_drag: float = key(0.0, doc="velocities decay by exp(-settle_drag dt) each step after the pre-roll: a "
+                             "drag that settles a garment on still bodies without swinging (garment dress: 10)",
+                             unit="1/s", ge=0)
 
 
 @dataclass

@@ -37,10 +37,10 @@ class SewingOptions:
     ramp_start: float = 10.0  # N/m^2, stiffness at the ramp's start
     quasistatic: bool = False  # drop velocities after each step of the ramp (and of the pre-roll)
     preroll: float = 0.0  # s: with quasistatic, velocities are dropped up to here too
-    # Velocities dropped after every step after these too: the cloth goes to its static
-    # equilibrium on still bodies instead of swinging there (garment dress; motion is not
-    # followed, so not for a moving body).
-    settle: bool = False
+    # 1/s: after the pre-roll, velocities decay by exp(-settle_drag dt) each step, a drag
+    # on the cloth's absolute velocity that settles it on still bodies instead of letting it
+    # swing there (garment dress); 0: none. Near critical for 1-2 Hz swings at 10/s.
+    settle_drag: float = 0.0
     multipliers: bool = True  # augmented-Lagrangian multipliers once at full stiffness
     multiplier_step: float = 2.0  # one multiplier update adds at most this many E h
     block_reach: float = 10.0  # d_hat: open pairs closer than this are tested for blocking
@@ -130,10 +130,14 @@ class Sewing:
         """Drop velocities after this step: quasi-static sewing during the ramp and the
         rest of the pre-roll. Pulled shut, not thrown: seams closing 30 cm gaps around a
         body would fling the panels onto it, pinning them at 1e-5 m and stalling Newton
-        (shirt_mean); a shrunk body growing back pushes the cloth out, not off. With
-        `settle`, every step: a static equilibrium reached without swinging there."""
+        (shirt_mean); a shrunk body growing back pushes the cloth out, not off."""
         o = self.options
-        return o.settle or (o.quasistatic and t_next < max(o.ramp, o.preroll) - 1e-9 * dt)
+        return o.quasistatic and t_next < max(o.ramp, o.preroll) - 1e-9 * dt
+
+    def kept(self, dt: float) -> float:
+        """The fraction of its velocity the cloth keeps after a step that is not pulled
+        shut (settle_drag)."""
+        return float(np.exp(-self.options.settle_drag * dt))
 
     def newton(self, options):
         """Newton's options for a quasi-static sewing step (pulled_shut)."""

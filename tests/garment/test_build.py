@@ -14,11 +14,11 @@ CLOTH = "[[cloth]]\nsize = [0.5, 0.5]\ncontrol_points = [6, 6]\n"
 
 
 def test_sewing_table_and_sewing_mode_fill_the_sewing_policy():
-    scene = loads_scene(CLOTH + "[time]\nsewing = 'quasistatic'\nsettle = 'quasistatic'\npreroll = 0.4\n[sewing]\nramp_start = 25.0\n"
+    scene = loads_scene(CLOTH + "[time]\nsewing = 'quasistatic'\nsettle_drag = 5.0\npreroll = 0.4\n[sewing]\nramp_start = 25.0\n"
                         "multiplier_step = 3.0\nblock_reach = 7.0\nheld_fraction = 0.05\npleat_wait_gap_mm = 2.0\n"
                         "pleat_wait_end = 0.9\n")
     o = sewing_options(scene, 0.4)
-    assert (o.ramp, o.quasistatic, o.settle, o.multipliers) == (0.4, True, True, True)
+    assert (o.ramp, o.quasistatic, o.settle_drag, o.multipliers) == (0.4, True, 5.0, True)
     assert (o.ramp_start, o.multiplier_step, o.block_reach, o.held_fraction) == (25.0, 3.0, 7.0, 0.05)
     assert abs(o.pleat_wait_gap - 2e-3) < 1e-15 and o.pleat_wait_end == 0.9
     # Left out, the table gives the policy's own defaults.

@@ -154,7 +154,7 @@ EVERY_KEY = _with(FULL, {
     "[cloth.material]": "E_bd = 1e4",
     'corners = ["u0v0", "u1v0"]': "sides = []\nbox = [[0.0, 0.0], [1.0, 0.1]]\ndepth = 1\nstart = 0.0",
     "pressure = 0.0": "pressure_direction = [0, 0, 1]",
-    'mode = "dynamic"': 'newton_extrapolate = 0\npreroll = 0.1\nsewing = "quasistatic"\nsettle = "dynamic"',
+    'mode = "dynamic"': 'newton_extrapolate = 0\npreroll = 0.1\nsewing = "quasistatic"\nsettle_drag = 0.0',
 }) + f"""
 [[obstacle]]
 name = "ball"
