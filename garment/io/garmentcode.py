@@ -41,7 +41,7 @@ def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[Pa
         pattern = spec["pattern"]
         panels_spec = pattern["panels"]
         props = spec.get("properties", {})
-        scale = 1.0 / float(props.get("units_in_meter", 100))
+        units = float(props.get("units_in_meter", 100))
         order = pattern.get("panel_order") or list(panels_spec)
         stitches = pattern.get("stitches", [])
     except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, AttributeError, ValueError,
@@ -50,9 +50,10 @@ def read_garmentcode(path, spacing: float = 0.003) -> tuple[list[Panel], list[Pa
     for key, value in (("panels", panels_spec), ("panel_order", order), ("stitches", stitches)):
         if not isinstance(value, dict if key == "panels" else list):
             raise InputError(f"{path}: pattern.{key} must be {'an object' if key == 'panels' else 'a list'}")
-    if not (np.isfinite(scale) and scale > 0):
+    if not (np.isfinite(units) and units > 0):  # 0 would divide by zero below
         raise InputError(f"{path}: properties.units_in_meter must be a positive number, got "
                          f"{printable(props.get('units_in_meter'), 40)}")
+    scale = 1.0 / units
     if props.get("curvature_coords", "relative") != "relative":
         raise InputError(f"{path}: properties.curvature_coords: only 'relative' is supported")
     panels, curves = [], {}

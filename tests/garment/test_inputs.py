@@ -232,6 +232,19 @@ def test_garmentcode_circle_radii_are_in_pattern_units(tmp_path):
     assert len(panel.rest) < 200
 
 
+def test_garmentcode_units_must_be_a_positive_number(tmp_path):
+    """units_in_meter = 0 divided by zero (a traceback, found by the fuzzer: case 209)."""
+    from garment.io.garmentcode import read_garmentcode
+
+    path = tmp_path / "disc.json"
+    for bad in (0, -100, "inf", "cm"):
+        spec = half_disc()
+        spec["properties"]["units_in_meter"] = bad
+        path.write_text(json.dumps(spec))
+        with pytest.raises(InputError, match=r"disc.json.*(units_in_meter must be a positive number|not a GarmentCode)"):
+            read_garmentcode(path)
+
+
 def test_the_outline_diameter_of_a_finely_sampled_circle_is_cheap():
     """All hull pairs of 100000 points took 149 GiB; rotating calipers take linear time."""
     from conform.boundary import diameter
