@@ -22,7 +22,9 @@ The defaults are one mechanism for every garment (docs/dressing.md):
   velocities, quasi-static, held skirt_04's hem 10 cm up after 2.5 s);
 - layout: panels that cross each other or the shrunk body move apart first (layout.py);
 - at rest: the run ends when the garment is at rest (RMS control-point speed of a step below
-  `rest_speed` over `rest_frames` frames, seams closed), or at `max_time`.
+  `rest_speed` over `rest_frames` frames, seams closed), or at `max_time`;
+- slid off: a garment whose mean height drops FALLEN below where it was placed stops as a
+  `placement` failure (nothing on the body holds it up).
 """
 
 from __future__ import annotations
