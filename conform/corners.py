@@ -97,14 +97,16 @@ def candidates(outline: Outline, hints=(), hints_only: bool = False, avoid=()) -
     return np.sort(pool)
 
 
+def _arc_distance(outline: Outline, pos, others) -> np.ndarray:
+    """(len(pos), len(others)) arc length between loop positions, the shorter way round."""
+    s = outline.s[:-1]
+    d = np.abs(s[np.asarray(pos)][:, None] - s[np.asarray(others)][None, :])
+    return np.minimum(d, outline.perimeter - d)
+
+
 def _clear_of(outline: Outline, pos: np.ndarray, others: np.ndarray, gap: float) -> np.ndarray:
     """(len(pos),) bool: loop positions farther than `gap` (arc length) from all `others`."""
-    if others.size == 0:
-        return np.ones(len(pos), bool)
-    s = outline.s[:-1]
-    d = np.abs(s[pos][:, None] - s[others][None, :])
-    d = np.minimum(d, outline.perimeter - d)
-    return ~(d <= gap).any(axis=1)
+    return ~(_arc_distance(outline, pos, others) <= gap).any(axis=1)
 
 
 def _cumulative_turning(outline: Outline) -> np.ndarray:
@@ -145,12 +147,9 @@ def pick_corners(outline: Outline, hints=(), hints_only: bool = False, avoid=())
     tau = turning_angles(outline, w)
     cand = candidates(outline, hints, hints_only, avoid)
     hints = np.asarray(hints, dtype=np.int64)
-    s = outline.s[:-1]
     is_hint = np.zeros(len(outline), bool)
     if hints.size:
-        d = np.abs(s[:, None] - s[hints][None, :])
-        d = np.minimum(d, outline.perimeter - d)
-        is_hint = (d < 0.5 * w).any(axis=1)
+        is_hint = (_arc_distance(outline, np.arange(len(outline)), hints) < 0.5 * w).any(axis=1)
 
     k = cand.size
     net = np.zeros((k, k))

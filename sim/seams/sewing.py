@@ -134,10 +134,13 @@ class Sewing:
         o = self.options
         return o.quasistatic and t_next < max(o.ramp, o.preroll) - 1e-9 * dt
 
-    def kept(self, dt: float) -> float:
+    def kept(self, t_next: float, dt: float) -> float:
         """The fraction of its velocity the cloth keeps after a step that is not pulled
-        shut (settle_drag)."""
-        return float(np.exp(-self.options.settle_drag * dt))
+        shut: all of it in the pre-roll, exp(-settle_drag dt) after it."""
+        o = self.options
+        if o.settle_drag == 0.0 or t_next < o.preroll - 1e-9 * dt:
+            return 1.0
+        return float(np.exp(-o.settle_drag * dt))
 
     def newton(self, options):
         """Newton's options for a quasi-static sewing step (pulled_shut)."""

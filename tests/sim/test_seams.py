@@ -3,6 +3,8 @@ never produce a barrier, and nothing passes through anything."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -116,6 +118,15 @@ def test_settling_drag_brings_a_swinging_cloth_to_its_static_equilibrium():
     # dropped after every step (quasi-static) it creeps down at g dt at most: 0.3 m away.
     assert max(speed["free"][125:]) > 0.1
     assert away["dropped"] > 0.3 and max(speed["dropped"]) < 9.81 * 0.01 + 1e-9
+
+
+def test_settling_drag_starts_after_the_pre_roll():
+    sewing = _hanging(drag=10.0).model.sewing
+    sewing.options = replace(sewing.options, preroll=0.05)
+    assert sewing.kept(0.04, 0.01) == 1.0  # the pre-roll's steps keep their velocity
+    assert abs(sewing.kept(0.05, 0.01) - np.exp(-0.1)) < 1e-15
+    sewing.options = replace(sewing.options, settle_drag=0.0)
+    assert sewing.kept(0.5, 0.01) == 1.0
 
 
 def test_scene_sewing_mode_is_checked():
