@@ -29,6 +29,10 @@ MIN_TURN_DEG = 12.0
 MAX_CANDIDATES = 18
 
 
+class TooFewCorners(ValueError):
+    """An outline with fewer than four points that can be corners."""
+
+
 def window_length(outline: Outline) -> float:
     """Arc-length window over which turning angles are measured: a few boundary edges,
     at least 1 % of the perimeter."""
@@ -93,7 +97,11 @@ def candidates(outline: Outline, hints=(), hints_only: bool = False, avoid=()) -
         # sewn up to a sharp tip, the corner 3 mm past it), and one beside a dart tip
         # is that dart tip.
         near = np.concatenate([pool, avoid])
-        pool = np.unique(np.concatenate([pool, extra[_clear_of(outline, extra, near, 0.5 * w)]]))
+        clear = extra[_clear_of(outline, extra, near, 0.5 * w)]
+        if np.unique(np.concatenate([pool, clear])).size < 4:
+            # A spiky outline leaves too few clear points: any not avoided will do.
+            clear = extra[~np.isin(extra, avoid)]
+        pool = np.unique(np.concatenate([pool, clear]))
     return np.sort(pool)
 
 
@@ -152,6 +160,8 @@ def pick_corners(outline: Outline, hints=(), hints_only: bool = False, avoid=())
         is_hint = (_arc_distance(outline, np.arange(len(outline)), hints) < 0.5 * w).any(axis=1)
 
     k = cand.size
+    if k < 4:
+        raise TooFewCorners(f"only {k} points of its outline can be corners, a patch needs 4")
     net = np.zeros((k, k))
     for i in range(k):
         for j in range(k):

@@ -263,8 +263,12 @@ def choose_corners(panel: Panel, outline: Outline, options: ConformOptions, hint
     own = [pos_of[int(h)] for h in panel.corner_hints if int(h) in pos_of]
     seam_ends = list(corners_mod.loop_positions(outline, hints, near))
     avoid_pos = corners_mod.loop_positions(outline, avoid, near)
-    return corners_mod.pick_corners(outline, own + seam_ends, hints_only=panel.faces is None and len(own) >= 4,
-                                    avoid=avoid_pos)
+    try:
+        return corners_mod.pick_corners(outline, own + seam_ends, hints_only=panel.faces is None and len(own) >= 4,
+                                        avoid=avoid_pos)
+    except corners_mod.TooFewCorners as e:
+        raise PanelError(panel, f"{e}; give its four corners with --corners, or check its outline "
+                                f"for a stray vertex") from None
 
 
 def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(), avoid=(),

@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from conform import ConformOptions, conform_panel
 from conform.boundary import extract_outline
 from conform.control_net import boundary_area, match_area, refine, refine_1d, tangential_start
-from conform.corners import candidates, pick_corners
+from conform.corners import TooFewCorners, candidates, pick_corners
 from conform.curve_fit import evaluate, fit_side, fit_side_reweighted, sample_polyline
 from conform.mips import MipsOptions, MipsProblem, _newton_terms, _point_terms, det, rule_points
 from conform.mips import refine as mips_refine
@@ -219,6 +219,22 @@ def test_round_outline_fallback_corners_keep_off_a_seam_end_and_a_dart_tip():
     assert hint in pool and tip not in pool
     assert spaced[3] not in pool and spaced[6] not in pool
     assert set(spaced) - {spaced[3], spaced[6]} <= set(pool)  # the others stay
+
+
+def test_fallback_corners_never_leave_fewer_than_four_candidates():
+    # Avoided points beside ten of the twelve spaced points would leave two clear ones; a
+    # patch needs four, so the spaced points not themselves avoided stand in (a fuzzed
+    # panel with one stray vertex made pick_corners index with an empty array).
+    t = np.linspace(0.0, 2.0 * np.pi, 200, endpoint=False)
+    outline = extract_outline(Panel(name="disc", source="test", rest=0.3 * np.c_[np.cos(t), np.sin(t)]))
+    spaced = np.searchsorted(outline.s[:-1], np.linspace(0.0, outline.perimeter, 12, endpoint=False))
+    avoid = spaced[:10] + 1
+    pool = candidates(outline, avoid=avoid)
+    assert pool.size >= 4 and not np.isin(pool, avoid).any()
+    assert len(pick_corners(outline, avoid=avoid)) == 4
+    square = extract_outline(Panel(name="sq", source="test", rest=np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])))
+    with pytest.raises(TooFewCorners, match="needs 4"):
+        pick_corners(square, avoid=[0])  # a clear error, not an IndexError
 
 
 # ------------------------------------------------------------------------- whole panels
