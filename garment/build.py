@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.budget import require_memory, simulation_bytes
+from sim.drag import Drag
 from sim.errors import InputError
 from sim.linear.model import cloth_mesh, linear_model, select_vertices
 from sim.linear.mesh import TriangleMesh
@@ -65,7 +66,7 @@ def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: 
         patches, materials, groups, scene.load.gravity, scene.load.pressure, directions, tm.dt, tm.mode,
         NewtonOptions.for_time(tm, newton), None if scene.garments else scene.output.mesh_resolution,
         contact_options(scene.contact), obstacles, seams, stiffness or 1e6, sewing_options(scene, sewn, tm.preroll),
-        keep_crossings)
+        keep_crossings, Drag(tm.settle_drag, tm.preroll))
     model.loads.window = (scene.load.start, scene.load.start + scene.load.ramp)
     V0 = np.zeros_like(model.C0)
     for c, piece in zip(scene.cloths, model.pieces):
@@ -118,11 +119,10 @@ def contact_options(spec) -> ContactOptions:
 
 
 def sewing_options(scene, ramp: float, preroll: float = 0.0) -> SewingOptions:
-    """The sewing policy from a scene's [sewing] table, its sewing mode and settling drag,
-    the ramp and the pre-roll (s)."""
+    """The sewing policy from a scene's [sewing] table, its sewing mode, the ramp and the
+    pre-roll (s)."""
     given = {f.name: getattr(scene.sewing, f.name) for f in fields(scene.sewing)}
-    return SewingOptions(ramp=ramp, quasistatic=scene.time.sewing == "quasistatic", preroll=preroll,
-                         settle_drag=scene.time.settle_drag, **given)
+    return SewingOptions(ramp=ramp, quasistatic=scene.time.sewing == "quasistatic", preroll=preroll, **given)
 
 
 def _pins(scene, shapes, sizes, pick) -> list[PinGroup]:

@@ -21,6 +21,7 @@ from . import quadrature
 from .contact.drive import BodyDrive
 from .contact.mesh import ContactMesh, crossing_parts, touching_parts, touching_vertices
 from .contact.stiffness import AdaptiveStiffness
+from .drag import Drag
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
 from .energies.barrier import BarrierEnergy
@@ -124,12 +125,13 @@ class Model:
                  dt: float = 0.01, mode: str = "dynamic", newton: NewtonOptions | None = None,
                  pins: Iterable[PinGroup] = (), contact: ContactOptions | None = None, obstacles=(),
                  seams: SeamSetup | None = None, sewing: SewingOptions | None = None,
-                 keep_crossings: bool = False, materials: Sequence[Material] = ()):
+                 keep_crossings: bool = False, materials: Sequence[Material] = (), drag: Drag = Drag()):
         self.pieces = list(pieces)
         self.n_cp = int(C0.shape[0])
         self.mass, self.areas = elastic.mass, elastic.areas
         self.dt = float(dt)
         self.mode = mode
+        self.drag = drag  # the settling drag on the cloth's velocity (sim/drag.py)
         self.newton = newton or NewtonOptions()
         self.newton.dt = self.dt
         self.pins = list(pins)
@@ -394,7 +396,7 @@ def bspline_model(patches: list[Patch], materials: list[Material], pins: Iterabl
                   dt: float = 0.01, mode: str = "dynamic", newton: NewtonOptions | None = None,
                   mesh_resolution: tuple[int, int] | None = None, contact: ContactOptions | None = None,
                   obstacles=(), seams: Sequence[SeamSpec] = (), seam_stiffness: float | Sequence[float] = 1e6,
-                  sewing: SewingOptions | None = None, keep_crossings: bool = False) -> Model:
+                  sewing: SewingOptions | None = None, keep_crossings: bool = False, drag: Drag = Drag()) -> Model:
     """The paper's B-spline cloth: one material per patch; pressure in Pa along
     pressure_directions[k] for patch k; seams held with seam_stiffness (N/m^2, one per
     seam or one for all). With contact, sewn pieces' meshes carry matched seam vertices
@@ -490,4 +492,4 @@ def bspline_model(patches: list[Patch], materials: list[Material], pins: Iterabl
     C0 = np.concatenate([p.patch.world.reshape(-1, 3) for p in pieces])
     return Model(pieces, elastic, C0, gravity=gravity, dt=dt, mode=mode, newton=newton, pins=pins,
                  contact=contact, obstacles=obstacles, seams=setup, sewing=sewing,
-                 keep_crossings=keep_crossings, materials=materials)
+                 keep_crossings=keep_crossings, materials=materials, drag=drag)

@@ -77,7 +77,7 @@ def step(model: Model, state: State) -> StepStats:
     if pulled_shut:
         state.V[:] = 0.0
         stats.extra["pulled_shut"] = 1.0
-    elif sewing is not None and (kept := sewing.kept(t_next, state.dt)) < 1.0:
+    elif (kept := model.drag.kept(t_next, state.dt)) < 1.0:
         state.V *= kept
     state.C = C_new
     state.t = t_next

@@ -37,10 +37,6 @@ class SewingOptions:
     ramp_start: float = 10.0  # N/m^2, stiffness at the ramp's start
     quasistatic: bool = False  # drop velocities after each step of the ramp (and of the pre-roll)
     preroll: float = 0.0  # s: with quasistatic, velocities are dropped up to here too
-    # 1/s: after the pre-roll, velocities decay by exp(-settle_drag dt) each step, a drag
-    # on the cloth's absolute velocity that settles it on still bodies instead of letting it
-    # swing there (garment dress); 0: none. Near critical for 1-2 Hz swings at 10/s.
-    settle_drag: float = 0.0
     multipliers: bool = True  # augmented-Lagrangian multipliers once at full stiffness
     multiplier_step: float = 2.0  # one multiplier update adds at most this many E h
     block_reach: float = 10.0  # d_hat: open pairs closer than this are tested for blocking
@@ -133,14 +129,6 @@ class Sewing:
         (shirt_mean); a shrunk body growing back pushes the cloth out, not off."""
         o = self.options
         return o.quasistatic and t_next < max(o.ramp, o.preroll) - 1e-9 * dt
-
-    def kept(self, t_next: float, dt: float) -> float:
-        """The fraction of its velocity the cloth keeps after a step that is not pulled
-        shut: all of it in the pre-roll, exp(-settle_drag dt) after it."""
-        o = self.options
-        if o.settle_drag == 0.0 or t_next < o.preroll - 1e-9 * dt:
-            return 1.0
-        return float(np.exp(-o.settle_drag * dt))
 
     def newton(self, options):
         """Newton's options for a quasi-static sewing step (pulled_shut)."""

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from garment.commands.simulate import print_seam_summary
+from sim.drag import Drag
 from sim.model import ContactOptions, bspline_model
 from sim.pins import PinGroup, select
 from sim.errors import InputError
@@ -94,7 +95,7 @@ def _hanging(mode: str = "dynamic", drag: float = 0.0) -> Simulator:
     b = panel("b", (0.0, -0.1, 0.0))
     return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, [PinGroup(select(a.shape, sides=("u0",)), np.zeros(3))],
                                    gravity=(0.0, 0.0, -9.81), dt=0.01, mode=mode, seams=[edge_seam()],
-                                   seam_stiffness=1e6, sewing=SewingOptions(settle_drag=drag)))
+                                   seam_stiffness=1e6, drag=Drag(drag)))
 
 
 def test_settling_drag_brings_a_swinging_cloth_to_its_static_equilibrium():
@@ -121,12 +122,24 @@ def test_settling_drag_brings_a_swinging_cloth_to_its_static_equilibrium():
 
 
 def test_settling_drag_starts_after_the_pre_roll():
-    sewing = _hanging(drag=10.0).model.sewing
-    sewing.options = replace(sewing.options, preroll=0.05)
-    assert sewing.kept(0.04, 0.01) == 1.0  # the pre-roll's steps keep their velocity
-    assert abs(sewing.kept(0.05, 0.01) - np.exp(-0.1)) < 1e-15
-    sewing.options = replace(sewing.options, settle_drag=0.0)
-    assert sewing.kept(0.5, 0.01) == 1.0
+    drag = Drag(10.0, start=0.05)
+    assert drag.kept(0.04, 0.01) == 1.0  # the pre-roll's steps keep their velocity
+    assert abs(drag.kept(0.05, 0.01) - np.exp(-0.1)) < 1e-15
+    assert Drag(0.0).kept(0.5, 0.01) == 1.0
+
+
+def test_settling_drag_applies_without_seams():
+    # A velocity policy of the run, not of sewing: a cloth with no seams is damped too.
+    def falling(rate):
+        return Simulator(bspline_model([panel("a", (0.0, 0.0, 0.0))], [PRESETS["cotton"]], gravity=(0.0, 0.0, -9.81),
+                                       dt=0.01, drag=Drag(rate)))
+    free, damped = falling(0.0), falling(10.0)
+    for _ in range(20):
+        free.step(), damped.step()
+    assert damped.model.sewing is None
+    # Free fall reaches g t = 1.96 m/s; the drag keeps it near its terminal g / rate.
+    assert abs(free.V[:, 2].mean() + 9.81 * 0.2) < 1e-3
+    assert -0.98 - 0.2 < damped.V[:, 2].mean() < -0.98 * 0.7
 
 
 def test_scene_sewing_mode_is_checked():
