@@ -3,8 +3,6 @@ never produce a barrier, and nothing passes through anything."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
