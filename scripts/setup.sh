@@ -19,9 +19,10 @@ PYTHON=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
     "$PYTHON" -m venv .venv
 fi
-stamp=.venv/.installed-$(sha1sum pyproject.toml | cut -c1-12)
+stamp=.venv/.installed-$(cat pyproject.toml scripts/constraints.txt | sha1sum | cut -c1-12)
 if [ ! -f "$stamp" ]; then
     .venv/bin/python -m pip install -q --upgrade pip
-    .venv/bin/python -m pip install -q -e ".[test]"
+    # Exact versions (scripts/constraints.txt): a fresh machine gets what the docs measured.
+    .venv/bin/python -m pip install -q -c scripts/constraints.txt -e ".[test]"
     rm -f .venv/.installed-* && touch "$stamp"
 fi
