@@ -223,17 +223,26 @@ class Model:
         crossings, 1e-17 m off the plane). Only pairs within NEAR_CUT d_hat: pieces
         of one panel, not a seam still to be closed."""
         near = crossings_at(mesh.mesh, x, mesh.n_cloth, np.arange(mesh.n_cloth))
-        fix = ((seams.state == OPEN) & np.isin(seams.labels[seams.pairs], near).any(axis=1)
-               & (seams.gaps(self.C0) < NEAR_CUT * dhat))
-        if fix.any():
-            state = seams.state.copy()
-            state[fix] = SEWN
-            sewn, labels = seams.mesh(self.C0, state, like=mesh)
-            if not ipctk.has_intersections(sewn.mesh, sewn.vertices(self.C0)):
-                seams.state, seams.labels = state, labels
-                self._set_piece_rows(sewn)
-                return sewn
-        raise InputError(self._crossing_report(mesh, x))
+        tried = self._sewn_at(seams, mesh, near, seams.gaps(self.C0) < NEAR_CUT * dhat)
+        if tried is None:
+            raise InputError(self._crossing_report(mesh, x))
+        sewn, state, labels = tried
+        seams.state, seams.labels = state, labels
+        self._set_piece_rows(sewn)
+        return sewn
+
+    def _sewn_at(self, seams: SeamContact, mesh: ContactMesh, vertices: np.ndarray, allowed: np.ndarray):
+        """(mesh, state, labels) with the open, `allowed` seam pairs that have a side among
+        `vertices` (of `mesh`) sewn, or None when there are none or the result crosses."""
+        fix = (seams.state == OPEN) & allowed & np.isin(seams.labels[seams.pairs], vertices).any(axis=1)
+        if not fix.any():
+            return None
+        state = seams.state.copy()
+        state[fix] = SEWN
+        sewn, labels = seams.mesh(self.C0, state, like=mesh)
+        if ipctk.has_intersections(sewn.mesh, sewn.vertices(self.C0)):
+            return None
+        return sewn, state, labels
 
     def _sew_touching(self, seams: SeamContact, barrier: BarrierEnergy, x: np.ndarray, before: float) -> bool:
         """Start sewn the open seam pairs that touch other cloth at round-off: pieces cut
@@ -245,15 +254,10 @@ class Model:
         mesh's vertices at the start; before: its closest distance."""
         mesh = barrier.contact
         near = touching_vertices(mesh, x, barrier.dhat, TOUCH * barrier.dhat)
-        sides = seams.labels[seams.pairs]
-        fix = (seams.state == OPEN) & np.isin(sides, near).any(axis=1)
-        if not fix.any():
+        tried = self._sewn_at(seams, mesh, near, True)
+        if tried is None:
             return False
-        state = seams.state.copy()
-        state[fix] = SEWN
-        sewn, labels = seams.mesh(self.C0, state, like=mesh)
-        if ipctk.has_intersections(sewn.mesh, sewn.vertices(self.C0)):
-            return False
+        sewn, state, labels = tried
         barrier.contact = sewn
         barrier.forget()
         if barrier.min_distance(self.C0) <= before:

@@ -8,7 +8,7 @@ import pytest
 
 from garment.commands.simulate import print_seam_summary
 from sim.drag import Drag
-from sim.model import ContactOptions, bspline_model
+from sim.model import NEAR_CUT, ContactOptions, bspline_model
 from sim.pins import PinGroup, select
 from sim.errors import InputError
 from sim.materials import PRESETS
@@ -20,7 +20,9 @@ from sim.seams.sewing import SewingOptions
 from sim.simulator import Simulator
 
 from tests.support.fd import fd_directional, fd_gradient, gradient
-from tests.support.intersections import intersecting_pairs, intersecting_triangles, shared_vertices, stacked_cloth
+from tests.support.intersections import (assert_garment_clean, intersecting_pairs, intersecting_triangles, shared_vertices,
+                                         stacked_cloth)
+from tests.support.paths import ROOT
 from tests.support.scenes import N, edge_seam, panel, two_panels
 
 
@@ -332,9 +334,6 @@ def test_pieces_of_a_cut_panel_that_overlap_at_the_start_are_sewn_there():
     touching or (numpy 2.4) as four crossing edges; either way the build sews the pairs
     there (each within NEAR_CUT d_hat) instead of refusing the start, and nothing crosses
     over the first steps."""
-    from sim.model import NEAR_CUT
-    from tests.support.intersections import assert_garment_clean
-    from tests.support.paths import ROOT
     source = (ROOT / "tests/sim/data/cut_skirt_front.json").as_posix()
     dhat = 1e-3
     sim = build_simulator(loads_scene(f'[[garment]]\nname = "skirt"\nsource = "{source}"\nseam_stiffness = 1e7\n'
