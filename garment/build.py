@@ -56,12 +56,12 @@ def build_simulator(scene, newton: NewtonOptions | None = None, keep_crossings: 
     check_memory(scene, garment_patches, sum(len(o.vertices) for o in obstacles))
     # Pre-roll: bodies hold their first pose while the seams close; inset bodies grow
     # back in its second half, once the seams are sewn.
-    sewn = 0.5 * tm.preroll if any(o.inset > 0.0 for o in scene.obstacles) else tm.preroll
+    sewn = 0.5 * tm.preroll if any(o.inset > 0.0 or o.raise_arms > 0.0 for o in scene.obstacles) else tm.preroll
     for o, spec in zip(obstacles, scene.obstacles):
         # A rigged body's sequence starts with its blend from the bind pose, played at the
         # end of the pre-roll.
         o.delay = tm.preroll - (o.sequence.lead_in if o.sequence is not None else 0.0)
-        o.inset, o.grow = spec.inset, (sewn, tm.preroll)
+        o.inset, o.raise_arms, o.grow = spec.inset, spec.raise_arms, (sewn, tm.preroll)
     model = bspline_model(
         patches, materials, groups, scene.load.gravity, scene.load.pressure, directions, tm.dt, tm.mode,
         NewtonOptions.for_time(tm, newton), None if scene.garments else scene.output.mesh_resolution,

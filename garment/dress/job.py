@@ -42,7 +42,7 @@ from sim.files import atomic_write, output_folder
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
-from .layout import PlacementError, lift_over_body, separate
+from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 
@@ -110,7 +110,9 @@ def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -
         placed = place_garment(pattern, frame, body_V, body_F, options, outdir)
         report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.moved.items()}
         report["lifted_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.lifted.items()}
-        obstacle = {"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up}
+        report["raised_arms_deg"] = placed.raise_arms
+        obstacle = {"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up,
+                    "raise_arms": placed.raise_arms}
         _simulate(dress_scene(outdir / "patches.json", obstacle, options), options, outdir, frame, report,
                   start, on_frame)
     except DressFailure as e:
@@ -159,11 +161,14 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     # Seams pulled shut through the body (a strap laid in front of a shoulder, its partner
     # behind) press the cloth into it while the body grows back: over it, they close.
     panels = [ps.panel_of(p.name) for p in ps.patches]
-    lifted = lift_over_body(ps.patches, ps.seams, body_V, body_F, panels)
-    shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, grow=(0.5 * options.sew_time,
-                                                                               options.sew_time))
+    # A skirt laid over the hands is sewn with the arms raised (lowered as the body grows).
+    arms = arms_out_of_the_way(ps.patches, ps.seams, body_V, body_F)
+    grow = (0.5 * options.sew_time, options.sew_time)
+    start = ObstacleGeometry("body", body_V, body_F, raise_arms=arms, grow=grow).at(0.0)
+    lifted = lift_over_body(ps.patches, ps.seams, start, body_F, panels)
+    shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, raise_arms=arms, grow=grow)
     layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=panels)
-    layout.lifted = lifted
+    layout.lifted, layout.raise_arms = lifted, arms
     save_patchset(outdir / "patches.json", ps)
     return layout
 

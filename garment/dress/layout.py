@@ -42,6 +42,7 @@ class Layout:
     moved: dict[str, float] = field(default_factory=dict)
     rounds: int = 0
     lifted: dict[str, float] = field(default_factory=dict)  # lift_over_body, m
+    raise_arms: float = 0.0  # arms_out_of_the_way, degrees
 
 
 @dataclass
@@ -308,6 +309,37 @@ def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panel
             for n in move:
                 index[n].world = start[n]
     return lifted
+
+
+ARM_ANGLES = (20.0, 40.0, 60.0)  # degrees, tried in turn
+
+
+def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -> float:
+    """The least of ARM_ANGLES (degrees) by which the body's arms, raised
+    (garment/io/arms.py), are off every seam's closing path; 0 when no path passes
+    through an arm (or the body has none found, or no angle clears them). A skirt laid
+    round an A-pose body's hips covers the hands, and its side seams close over them."""
+    from ..io.arms import find_arms, raised
+
+    if not seams_through_body(patches, seams, body_V, body_F):
+        return 0.0
+    arms = find_arms(body_V, body_F)
+    if not arms:
+        return 0.0
+    on_arm = np.zeros(len(body_V), bool)
+    for a in arms:
+        on_arm[a.vertices[a.weights > 0.0]] = True
+
+    def crosses_arm(V) -> bool:
+        hits = seams_through_body(patches, seams, V, body_F)
+        return bool(hits) and bool(on_arm[cKDTree(V).query(np.concatenate(list(hits.values())))[1]].any())
+
+    if not crosses_arm(body_V):
+        return 0.0
+    for angle in ARM_ANGLES:
+        if not crosses_arm(raised(body_V, arms, np.radians(angle))):
+            return angle
+    return 0.0
 
 
 def _away_from_body(patch, normal: np.ndarray, points: np.ndarray, body_V: np.ndarray, tree: cKDTree,

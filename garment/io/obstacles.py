@@ -27,19 +27,33 @@ class ObstacleGeometry:
     # contact. Seams then close around a slimmer body (their straight pulls clear it), and
     # a garment fitted to a drape may dip a millimetre into the body it was draped on.
     inset: float = 0.0
+    # And its arms start raised by this angle (degrees, garment/io/arms.py), lowered
+    # over the same time: a skirt laid round the hips is sewn clear of the hands.
+    raise_arms: float = 0.0
     grow: tuple[float, float] = (0.0, 0.0)
     _offsets: np.ndarray | None = None
+    _arms: list | None = None
 
     @property
     def animated(self) -> bool:
-        return self.sequence is not None or self.spin is not None or self.inset > 0.0
+        return self.sequence is not None or self.spin is not None or self.inset > 0.0 or self.raise_arms > 0.0
 
     def at(self, t: float) -> np.ndarray:
         """(V, 3) vertex positions at time t."""
         t0, t1 = self.grow
-        if self.inset > 0.0 and t < t1:
-            return self._pose(t - self.delay) - min((t1 - t) / (t1 - t0), 1.0) * self._inset_offsets()
-        return self._pose(t - self.delay)
+        V = self._pose(t - self.delay)
+        if t >= t1 or (self.inset <= 0.0 and self.raise_arms <= 0.0):
+            return V
+        ahead = min((t1 - t) / (t1 - t0), 1.0)  # of the way still to grow
+        if self.inset > 0.0:
+            V = V - ahead * self._inset_offsets()
+        if self.raise_arms > 0.0:
+            from .arms import find_arms, raised
+
+            if self._arms is None:
+                self._arms = find_arms(self.vertices, self.faces)
+            V = raised(V, self._arms, ahead * np.radians(self.raise_arms))
+        return V
 
     def _pose(self, t: float) -> np.ndarray:
         if self.sequence is not None:

@@ -72,6 +72,9 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
     obstacles = [_read_obstacle(t, i) for i, t in enumerate(root.tables("obstacle"))]
     time_spec = root.table("time").build()
     for i, o in enumerate(obstacles):
+        if o.raise_arms > 0.0 and time_spec.preroll <= 0.0:
+            raise SceneError(source, f"obstacle[{i}].raise_arms", "raised arms are lowered during the pre-roll: "
+                                                                 "set [time] preroll > 0")
         if o.inset > 0.0 and time_spec.preroll <= 0.0:
             raise SceneError(source, f"obstacle[{i}].inset", "an inset body grows out during the pre-roll: "
                                                             "set [time] preroll > 0")

@@ -278,6 +278,12 @@ class ObstacleSpec:
         doc="start this far inside the surface: the seams close in the first half of the pre-roll, the body "
             "grows back in the second; needs [time] preroll > 0",
     )
+    raise_arms: float = key(
+        0.0, unit="deg", ge=0, le=90, kinds=FILE_KINDS,
+        doc="start with the arms (found from the mesh: what hangs free beside the torso) turned up and out by "
+            "this angle, lowered while the body grows back: a skirt sewn round an A-pose body's hips clear of "
+            "its hands; needs [time] preroll > 0",
+    )
 
 
 @dataclass

@@ -181,6 +181,7 @@ mesh = "{ASSETS / 'bodies' / 'mean_all.obj'}"
 scale = 1.0
 up = "y"
 translate = [0, 0, 0.75]
+raise_arms = 20.0
 
 [[obstacle]]
 animation = "{ASSETS / 'bodies' / 'rumba_dancing_121f.npz'}"
