@@ -321,23 +321,22 @@ def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) 
     round an A-pose body's hips covers the hands, and its side seams close over them."""
     from ..io.arms import find_arms, raised
 
-    if not seams_through_body(patches, seams, body_V, body_F):
-        return 0.0
-    arms = find_arms(body_V, body_F)
+    hits = seams_through_body(patches, seams, body_V, body_F)
+    arms = find_arms(body_V, body_F) if hits else []
     if not arms:
         return 0.0
     on_arm = np.zeros(len(body_V), bool)
     for a in arms:
         on_arm[a.vertices[a.weights > 0.0]] = True
 
-    def crosses_arm(V) -> bool:
-        hits = seams_through_body(patches, seams, V, body_F)
+    def on_arms(V, hits) -> bool:  # is the body vertex nearest some crossing an arm's?
         return bool(hits) and bool(on_arm[cKDTree(V).query(np.concatenate(list(hits.values())))[1]].any())
 
-    if not crosses_arm(body_V):
+    if not on_arms(body_V, hits):
         return 0.0
     for angle in ARM_ANGLES:
-        if not crosses_arm(raised(body_V, arms, np.radians(angle))):
+        V = raised(body_V, arms, np.radians(angle))
+        if not on_arms(V, seams_through_body(patches, seams, V, body_F)):
             return angle
     return 0.0
 

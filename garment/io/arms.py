@@ -88,12 +88,12 @@ def _arm(V, idx, cut) -> Arm:
     axis = np.cross(out, [0.0, 0.0, 1.0])
     # Check the sign on the hand: the lowest point must rise.
     low = P[np.argmin(P[:, 2])] - pivot
-    if (_turn(low[None], axis, 0.1) - low[None])[0, 2] < 0.0:
+    if (turn(low[None], axis, 0.1) - low[None])[0, 2] < 0.0:
         axis = -axis
     return Arm(np.asarray(idx), weights, pivot, axis)
 
 
-def _turn(X: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+def turn(X: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """X (k, 3) turned by `angle` about the unit `axis` through the origin (Rodrigues)."""
     cos, sin = np.cos(angle), np.sin(angle)
     return X * cos + np.cross(axis, X) * sin + np.outer(X @ axis, axis) * (1.0 - cos)
@@ -107,6 +107,6 @@ def raised(V: np.ndarray, arms: list[Arm], angle: float) -> np.ndarray:
         return out
     for a in arms:
         X = V[a.vertices] - a.pivot
-        turned = _turn(X, a.axis, angle)
+        turned = turn(X, a.axis, angle)
         out[a.vertices] = V[a.vertices] + a.weights[:, None] * (turned - X)
     return out

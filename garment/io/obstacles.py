@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arms import find_arms, raised, turn
 from .bodies import BodySequence, check_extent, check_up_axis, load_sequence, to_scene_frame
 from .meshfile import read_mesh
 
@@ -48,8 +49,6 @@ class ObstacleGeometry:
         if self.inset > 0.0:
             V = V - ahead * self._inset_offsets()
         if self.raise_arms > 0.0:
-            from .arms import find_arms, raised
-
             if self._arms is None:
                 self._arms = find_arms(self.vertices, self.faces)
             V = raised(V, self._arms, ahead * np.radians(self.raise_arms))
@@ -83,11 +82,8 @@ class ObstacleGeometry:
 
 def _rotate(V: np.ndarray, axis, center, angle: float) -> np.ndarray:
     """V rotated by `angle` about the unit `axis` through `center` (Rodrigues)."""
-    k = np.asarray(axis, float)
     c = np.asarray(center, float)
-    X = V - c
-    cos, sin = np.cos(angle), np.sin(angle)
-    return c + X * cos + np.cross(k, X) * sin + np.outer(X @ k, k) * (1.0 - cos)
+    return c + turn(V - c, np.asarray(axis, float), angle)
 
 
 def load_obstacle(spec, time=None) -> ObstacleGeometry:
