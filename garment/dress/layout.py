@@ -24,6 +24,8 @@ from sim.embedding import default_resolution, grid_faces, interpolation_matrix, 
 from sim.errors import InputError
 from sim.seams.routes import through
 
+from ..io.arms import find_arms, raised
+
 STEP = 0.004  # m, a panel's first push along its normal; each further push is one STEP longer
 MOST = 0.15  # m, a panel is never moved further than this in all
 CLEARANCE = 0.002  # m, panels end at least this far from the body and from each other
@@ -319,8 +321,6 @@ def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) 
     (garment/io/arms.py), are off every seam's closing path; 0 when no path passes
     through an arm (or the body has none found, or no angle clears them). A skirt laid
     round an A-pose body's hips covers the hands, and its side seams close over them."""
-    from ..io.arms import find_arms, raised
-
     hits = seams_through_body(patches, seams, body_V, body_F)
     arms = find_arms(body_V, body_F) if hits else []
     if not arms:

@@ -58,7 +58,7 @@ def test_a_body_without_free_arms_has_none():
 def test_raised_arms_are_lowered_as_the_body_grows_back(body):
     V, F = body
     g = ObstacleGeometry("body", V, F, raise_arms=40.0, grow=(0.3, 0.6))
-    hand = [find_arms(V, F)[k].vertices for k in range(2)]
+    hand = [a.vertices for a in find_arms(V, F)]
     heights = [min(g.at(t)[h, 2].min() for h in hand) for t in (0.0, 0.3, 0.45, 0.6, 0.7)]
     assert heights[0] == heights[1] > 1.15  # raised until the growing starts
     assert heights[1] > heights[2] > heights[3]  # lowered while it grows
