@@ -162,4 +162,4 @@ class SeamContact:
         else:
             return 0
         self.state, self.labels = state, labels
-        return int(fresh.sum())
+        return int((fresh & (state == SEWN)).sum())  # not the pairs just BLOCKED

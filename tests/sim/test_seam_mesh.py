@@ -150,6 +150,29 @@ def test_crossings_away_from_the_merged_pairs_stop_only_a_fresh_state_sewing(mon
     assert (sim.model.seam_contact.state == 1).all() == keep
 
 
+def test_a_pair_blocked_then_sewn_counts_once(monkeypatch):
+    # The first merge crosses at one pair: it is BLOCKED, the rest are sewn, and it sews
+    # on a later step. seam_pairs_sewn counts each pair once, when it is sewn.
+    sim = two_panels(0.03)
+    calls = []
+    real = seams_mod.ipctk.has_intersections
+
+    def first_crosses(mesh, x):
+        calls.append(1)
+        return len(calls) == 1 or real(mesh, x)
+
+    monkeypatch.setattr(seams_mod.ipctk, "has_intersections", first_crosses)
+    monkeypatch.setattr(seams_mod, "crossings_at", lambda mesh, x, n, labels: labels[:1])
+    merged = [sim.step().extra["seam_pairs_sewn"] for _ in range(2)]
+    n = len(sim.model.seam_contact.pairs)
+    assert merged == [0, n - 1] and (sim.model.seam_contact.state != seams_mod.SEWN).sum() == 1
+    for _ in range(4):
+        merged.append(sim.step().extra["seam_pairs_sewn"])
+        if (sim.model.seam_contact.state == seams_mod.SEWN).all():
+            break
+    assert (sim.model.seam_contact.state == seams_mod.SEWN).all() and sum(merged) == n
+
+
 def test_the_ring_does_not_turn_over_in_the_rest_shape():
     # A rest shape whose v = 0 side bulges in by 0.8 grid steps over a short stretch (as a
     # boundary wrapping round a dart tip comes close to the grid's next row): zipped in
