@@ -117,6 +117,12 @@ class IncrementalPotential:
         with the bodies moving to B1 (when given) meanwhile."""
         return min([1.0] + [e.max_step(C0, C1, B1, driven) for e in self.variable])
 
+    def body_clearance(self, C: np.ndarray, reach: float) -> np.ndarray | None:
+        """(Vo,) how far each obstacle vertex may move on its own with the cloth held at C
+        (the least any contact energy allows), or None when none limits it."""
+        limits = [c for c in (e.body_clearance(C, reach) for e in self.variable) if c is not None]
+        return np.minimum.reduce(limits) if limits else None
+
     def coupling(self, C: np.ndarray, dB: np.ndarray) -> np.ndarray:
         """(n_cp, 3) first-order gradient change when the bodies move by dB."""
         return sum((e.coupling(C, dB) for e in self.variable), np.zeros((self.n_cp, 3)))

@@ -7,8 +7,11 @@ iteration's step carries the body's remaining motion dB, the cloth direction inc
 first-order push of that motion (-H_cc^-1 H_cb dB), and CCD bounds the joint motion. While
 the body is still on its way a step is taken as far as CCD allows, without the energy
 test (prescribed motion need not lower the cloth's energy); once the body has arrived the
-ordinary projected Newton iterations finish the step. A body blocked by trapped cloth stays
-behind its target and catches up in later steps; it is never driven through the cloth.
+ordinary projected Newton iterations finish the step. Once a drive iteration's CCD fraction
+falls below newton.BLOCKED (one pinched contact holds the whole body's motion to a sliver),
+every body vertex moves on its own as far as the cloth around it allows (advance_each, half
+of its clearance) and ordinary iterations let the cloth give way; the parts held back stay
+behind their targets and catch up in later steps. A body is never driven through the cloth.
 """
 
 from __future__ import annotations
@@ -55,6 +58,14 @@ class BodyDrive:
             self.mesh.move_obstacles(self.target)
         elif alpha > 0.0:
             self.mesh.move_obstacles(self.mesh.obstacle_vertices + alpha * self.remaining())
+
+    def advance_each(self, limit: np.ndarray) -> None:
+        """Move every obstacle vertex along its remaining way by at most limit (Vo,) m."""
+        r = self.remaining()
+        length = np.sqrt((r * r).sum(axis=1))
+        f = np.minimum(1.0, limit / np.maximum(length, 1e-300))
+        B = self.mesh.obstacle_vertices + f[:, None] * r
+        self.mesh.move_obstacles(np.where((f >= 1.0)[:, None], self.target, B))
 
     def positions(self) -> dict[str, np.ndarray]:
         """Current vertices of each obstacle, by name."""

@@ -136,6 +136,27 @@ class BarrierEnergy(ContactEnergy):
         floor = DRIVE_FLOOR * self.dhat if driven else 0.0
         return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, floor, None, self.ccd))
 
+    def body_clearance(self, C, reach: float) -> np.ndarray:
+        """(Vo,) how far each obstacle vertex may move with the cloth held at C, keeping
+        every pair DRIVE_FLOOR d_hat apart: its distance to the nearest cloth primitive
+        within reach, less the floor (ipctk's per-vertex safe distances: a primitive moves
+        no farther than its farthest-moving vertex, so a pair at distance d stays apart
+        while each of its vertices moves less than d). Obstacle vertices outside the
+        focused mesh (ContactMesh.focus) are beyond reach of the cloth."""
+        floor = DRIVE_FLOOR * self.dhat
+        reach = max(float(reach), 2.0 * floor)
+        x = self.contact.vertices(C)
+        candidates = ipctk.Candidates()
+        candidates.build(self.contact.mesh, x, reach)
+        safe = candidates.compute_per_vertex_safe_distances(self.contact.mesh, x, reach, floor)
+        out = np.full(len(self.contact.obstacle_vertices), reach - floor)
+        body = np.ravel(safe)[self.contact.n_cloth:]
+        if self.contact.body_ids is None:
+            out[:] = body
+        else:
+            out[self.contact.body_ids] = body
+        return np.maximum(out, 0.0)
+
     def min_distance(self, C) -> float:
         x = self._update(C)
         if len(self.collisions) == 0:

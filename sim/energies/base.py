@@ -69,3 +69,8 @@ class Energy:
     def coupling(self, C: np.ndarray, dB: np.ndarray) -> np.ndarray:
         """Contact energies: (n_cp, 3) change of the gradient when bodies move by dB."""
         return np.zeros_like(C)
+
+    def body_clearance(self, C: np.ndarray, reach: float) -> np.ndarray | None:
+        """Contact energies: (Vo,) how far (m, at most reach) each obstacle vertex may move,
+        in any direction and on its own, with the cloth held at C; None: no limit."""
+        return None
