@@ -112,11 +112,11 @@ class CholeskySolver:
 
     def factorize(self, A_lower: sp.csc_matrix) -> float:
         """Factor A (+ shift I if A is not positive definite); returns the shift used."""
-        shift = 0.0
-        scale = float(np.abs(A_lower.diagonal()).max()) or 1.0
+        shift, scale = 0.0, None
         while not self._refactor(A_lower, shift):
             # Only reachable without inertia (quasi-static) or with an unprojected
             # Hessian: regularise like Levenberg-Marquardt.
+            scale = scale or float(np.abs(A_lower.diagonal()).max()) or 1.0
             shift = max(1e-10 * scale, 10.0 * shift)
             if shift > scale:
                 raise np.linalg.LinAlgError(f"not positive definite even shifted by {shift:.3g}")

@@ -29,6 +29,7 @@ class IncrementalPotential:
         self.refresh_constant()
         self.data = self.const_data.copy()
         self.matrix = self.pattern.matrix(self.data)
+        self._diagonal = None  # of matrix, once asked for after an assembly (diagonal())
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.correction = None
         self.solver = CholeskySolver(self.matrix)
@@ -63,6 +64,7 @@ class IncrementalPotential:
         Variable-pattern (contact) Hessians are merged into the same fixed pattern, so the
         solver's symbolic analysis never changes."""
         self.data[:] = self.const_data
+        self._diagonal = None
         for e in self.energies:
             if not e.constant_hessian:
                 e.add_hessian(C, self.data, project)
@@ -83,6 +85,13 @@ class IncrementalPotential:
         L = sp.csr_matrix((v, (r, c)), shape=(n, n))
         self.correction = ((L + L.T).tocsr(), sum(e.shift for e in parts))
 
+    def diagonal(self) -> np.ndarray:
+        """The assembled matrix's diagonal, kept until the next assembly (every CG
+        iteration's Hessian product needs it: 1.7 ms a time at 9.5K DOFs)."""
+        if self._diagonal is None:
+            self._diagonal = self.matrix.diagonal()
+        return self._diagonal
+
     def coupling_bound(self) -> float:
         """Gershgorin bound on ||D^-1 B||_inf, D the in-pattern Hessian, B the moved
         couplings (0 when nothing moved): below 1, the factor of D (plus the moved
@@ -90,7 +99,7 @@ class IncrementalPotential:
         if self.correction is None:
             return 0.0
         shift = self.correction[1]
-        d = self.matrix.diagonal() - shift
+        d = self.diagonal() - shift
         with np.errstate(over="ignore"):  # a coupling on a (near) zero diagonal: unbounded
             return float(np.max(shift / np.maximum(d, 1e-300)))
 
@@ -106,7 +115,7 @@ class IncrementalPotential:
     def apply_hessian(self, p: np.ndarray) -> np.ndarray:
         """The exact assembled Hessian (free DOFs) times p, moved couplings included."""
         L = self.matrix
-        y = L @ p + L.T @ p - L.diagonal() * p
+        y = L @ p + L.T @ p - self.diagonal() * p
         if self.correction is not None:
             B, shift = self.correction
             y += B @ p - shift * p
