@@ -162,13 +162,13 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     # behind) press the cloth into it while the body grows back: over it, they close.
     panels = [ps.panel_of(p.name) for p in ps.patches]
     # A skirt laid over the hands is sewn with the arms raised (lowered as the body grows).
-    arms = arms_out_of_the_way(ps.patches, ps.seams, body_V, body_F)
+    angle, arms = arms_out_of_the_way(ps.patches, ps.seams, body_V, body_F)
     grow = (0.5 * options.sew_time, options.sew_time)
-    start = ObstacleGeometry("body", body_V, body_F, raise_arms=arms, grow=grow).at(0.0)
+    start = ObstacleGeometry("body", body_V, body_F, raise_arms=angle, grow=grow, arms=arms).at(0.0)
     lifted = lift_over_body(ps.patches, ps.seams, start, body_F, panels)
-    shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, raise_arms=arms, grow=grow)
+    shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, raise_arms=angle, grow=grow, arms=arms)
     layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=panels)
-    layout.lifted, layout.raise_arms = lifted, arms
+    layout.lifted, layout.raise_arms = lifted, angle
     save_patchset(outdir / "patches.json", ps)
     return layout
 

@@ -316,15 +316,16 @@ def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panel
 ARM_ANGLES = (20.0, 40.0, 60.0)  # degrees, tried in turn
 
 
-def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -> float:
-    """The least of ARM_ANGLES (degrees) by which the body's arms, raised
-    (garment/io/arms.py), are off every seam's closing path; 0 when no path passes
-    through an arm (or the body has none found, or no angle clears them). A skirt laid
-    round an A-pose body's hips covers the hands, and its side seams close over them."""
+def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -> tuple[float, list]:
+    """(angle, arms): the least of ARM_ANGLES (degrees) by which the body's arms, raised
+    (garment/io/arms.py), are off every seam's closing path, and those arms (for
+    ObstacleGeometry.arms: found once); (0, []) when no path passes through an arm (or
+    the body has none found, or no angle clears them). A skirt laid round an A-pose
+    body's hips covers the hands, and its side seams close over them."""
     hits = seams_through_body(patches, seams, body_V, body_F)
     arms = find_arms(body_V, body_F) if hits else []
     if not arms:
-        return 0.0
+        return 0.0, []
     on_arm = np.zeros(len(body_V), bool)
     for a in arms:
         on_arm[a.vertices[a.weights > 0.0]] = True
@@ -333,12 +334,12 @@ def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) 
         return bool(hits) and bool(on_arm[cKDTree(V).query(np.concatenate(list(hits.values())))[1]].any())
 
     if not on_arms(body_V, hits):
-        return 0.0
+        return 0.0, []
     for angle in ARM_ANGLES:
         V = raised(body_V, arms, np.radians(angle))
         if not on_arms(V, seams_through_body(patches, seams, V, body_F)):
-            return angle
-    return 0.0
+            return angle, arms
+    return 0.0, []
 
 
 def _away_from_body(patch, normal: np.ndarray, points: np.ndarray, body_V: np.ndarray, tree: cKDTree,

@@ -33,7 +33,7 @@ class ObstacleGeometry:
     raise_arms: float = 0.0
     grow: tuple[float, float] = (0.0, 0.0)
     _offsets: np.ndarray | None = None
-    _arms: list | None = None
+    arms: list | None = None  # garment/io/arms.find_arms of the vertices; found when first needed if None
 
     @property
     def animated(self) -> bool:
@@ -49,9 +49,9 @@ class ObstacleGeometry:
         if self.inset > 0.0:
             V = V - ahead * self._inset_offsets()
         if self.raise_arms > 0.0:
-            if self._arms is None:
-                self._arms = find_arms(self.vertices, self.faces)
-            V = raised(V, self._arms, ahead * np.radians(self.raise_arms))
+            if self.arms is None:
+                self.arms = find_arms(self.vertices, self.faces)
+            V = raised(V, self.arms, ahead * np.radians(self.raise_arms))
         return V
 
     def _pose(self, t: float) -> np.ndarray:
