@@ -90,19 +90,65 @@ class _ScikitFactor:
         return self._factor(b)
 
 
+def _factor(A_lower: sp.csc_matrix, ordering: str):
+    make = supernodal.RelaxedFactor if supernodal.available() else _ScikitFactor
+    return make(A_lower, ordering)
+
+
+# Of the entries a re-analysis keeps, the share that may be zero now: a pattern kept a
+# little wider than the nonzeros lets contacts come and go without a new analysis.
+SLACK = 0.25
+
+
 class CholeskySolver:
     """Solves H x = b for the lower-triangular CSC matrices of one fixed pattern.
+
+    Only the pattern's nonzero part is factored. A contact Hessian's pattern holds the
+    stencil of every cloth triangle, as any may touch, and few do: in dress_02's sewing
+    (9.5K DOFs) 286K of 587K entries were nonzero, and L held 2.2M values instead of 4.1M
+    (factorization 55 ms against 123 ms, plus 24 ms for an AMD analysis). The analysis
+    is kept while the nonzeros stay inside it, redone when one falls outside, and at the
+    start of a step (`restart`) when the nonzeros differ from it: the analysis then
+    depends on that step's matrices alone, so a run resumed from a checkpoint repeats the
+    uninterrupted one bit for bit.
 
     ordering: CHOLMOD's ordering method (its default tries AMD and METIS)."""
 
     def __init__(self, A_lower: sp.csc_matrix, ordering: str = "default"):
-        make = supernodal.RelaxedFactor if supernodal.available() else _ScikitFactor
-        self._factor = make(A_lower, ordering)
+        self._ordering = ordering
+        self._columns = np.repeat(np.arange(A_lower.shape[1]), np.diff(A_lower.indptr))
+        self._diagonal = A_lower.indices == self._columns
+        self._kept = None  # (nnz,) bool: the entries of the analysed pattern
+        self._exact = True  # the next analysis: of the nonzeros alone, unless they are the kept ones
+        self._factor = None
         self.n_factorizations = 0
+        self.n_analyses = 0
+
+    def restart(self) -> None:
+        """A new time step: its first factorization analyses anew unless the nonzeros are
+        exactly the analysed pattern."""
+        self._exact = True
+
+    def _part(self, A_lower: sp.csc_matrix) -> sp.csc_matrix:
+        """The analysed part of A, analysed anew when a nonzero of A falls outside it."""
+        nonzero = (A_lower.data != 0.0) | self._diagonal
+        exact, self._exact = self._exact, False
+        if self._kept is None or (nonzero & ~self._kept).any() or (exact and (nonzero != self._kept).any()):
+            wider = nonzero if self._kept is None or exact else nonzero | self._kept
+            self._kept = wider if wider.sum() <= (1.0 + SLACK) * nonzero.sum() else nonzero
+            indptr = np.concatenate([[0], np.cumsum(np.bincount(self._columns[self._kept], minlength=A_lower.shape[1]))])
+            self._A = sp.csc_matrix((A_lower.data[self._kept], A_lower.indices[self._kept], indptr),
+                                    shape=A_lower.shape)
+            self._factor = _factor(self._A, self._ordering)
+            self.n_analyses += 1
+        else:
+            self._A.data[:] = A_lower.data[self._kept]
+        return self._A
 
     def _refactor(self, A_lower: sp.csc_matrix, shift: float) -> bool:
-        with blas_threads(A_lower.shape[0]):
-            ok = self._factor.factorize(A_lower, shift)
+        A = self._part(A_lower)
+        with blas_threads(A.shape[0]):
+            ok = self._factor.factorize(A, shift)
         self.n_factorizations += 1
         return ok
 
