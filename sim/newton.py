@@ -34,10 +34,13 @@ class NewtonOptions:
     record_gradients: bool = False  # keep ||g_free|| per iteration (convergence tests)
     pcg_rtol: float = 1e-8  # CG on the exact Hessian when contact couplings leave the pattern
     pcg_max_iterations: int = 30  # an early stop still gives a descent direction
-    # Couplings outside the pattern: "auto" (partial factorization: CG or merge by the
-    # Gershgorin bound), "neumann" (the same with a Neumann series instead of CG),
-    # "merge" (always), "diagonal" (keep them on the diagonal only).
-    off_pattern: str = "auto"
+    # Couplings outside the pattern: "merge" (into the Hessian, analysed and factored
+    # anew), "auto" (partial factorization: CG or merge by the Gershgorin bound),
+    # "neumann" (the same with a Neumann series instead of CG), "diagonal" (keep them on
+    # the diagonal only). Merging pays now that only the nonzeros are factored
+    # (linsolve.CholeskySolver): dress_02, 20 sewing steps after t = 0.25 s, 159 Newton
+    # iterations, 52.6 s with "auto" (4 CG iterations a solve) against 44.4 s.
+    off_pattern: str = "merge"
     # Doublings of a full step tried when the energy falls much faster than the Newton
     # model predicts (sliding friction: see _extrapolate); 0 turns them off.
     extrapolate: int = 0
