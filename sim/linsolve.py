@@ -4,7 +4,9 @@ CHOLMOD is called through sim/supernodal.py (relaxed supernodes, faster on cloth
 Hessians) where it recognises the library, through scikit-sparse otherwise.
 
 The fill-reducing ordering and supernodal structure depend only on the pattern, so they
-are computed once per pattern; every Newton iteration refactors numerically in place.
+are computed once per pattern of nonzeros (CholeskySolver: a contact Hessian's fixed
+pattern is mostly zeros, and only its nonzero part is factored); every Newton iteration
+refactors numerically in place while its nonzeros stay inside the analysed pattern.
 """
 
 from __future__ import annotations

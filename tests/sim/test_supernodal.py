@@ -83,3 +83,56 @@ def test_solve_once_without_shift_reports_indefinite():
     assert linsolve.solve_once(lower(A), np.ones(A.shape[0]), allow_shift=False) is None
     shifted = linsolve.CholeskySolver(lower(A))
     assert shifted.factorize(lower(A)) > 0.0
+
+
+def test_only_the_nonzeros_are_factored_and_their_analysis_kept_while_they_stay_inside():
+    # A pattern wider than its nonzeros (a contact stencil for every triangle, few
+    # touching): the solver factors the nonzero part, keeps that analysis while later
+    # nonzeros fall inside it, analyses anew when one falls outside, and at a step's
+    # start (restart) whenever the nonzeros differ, so the result depends on the step's
+    # matrices alone.
+    m = 12
+    A = grid_laplacian(m)
+    wide = (A + sp.diags([1.0, 1.0], [-m - 1, m + 1], shape=A.shape)).tocsc()  # extra couplings
+    pattern = lower(wide)
+    pattern.sort_indices()
+    rows, cols = pattern.indices, np.repeat(np.arange(A.shape[0]), np.diff(pattern.indptr))
+    on_extra = rows - cols == m + 1  # the pattern entries of the couplings
+    rng = np.random.default_rng(3)
+    b = rng.standard_normal(A.shape[0])
+
+    def matrix(coupled: np.ndarray) -> sp.csc_matrix:
+        """The pattern with values of A, plus -0.2 on the couplings in `coupled` (zeros elsewhere)."""
+        M = pattern.copy()
+        M.data[:] = lower(A).toarray()[rows, cols]
+        M.data[on_extra] = np.where(coupled, -0.2, 0.0)
+        return M
+
+    def full(M):
+        return (M + M.T - sp.diags(M.diagonal())).toarray()
+
+    n_extra = int(on_extra.sum())
+    solver = linsolve.CholeskySolver(pattern)
+    none = np.zeros(n_extra, bool)
+    M = matrix(none)
+    assert solver.factorize(M) == 0.0
+    assert np.allclose(solver.solve(b), np.linalg.solve(full(M), b), rtol=1e-10, atol=1e-12)
+    assert solver.n_analyses == 1 and solver._A.nnz == np.count_nonzero(lower(A).toarray())
+    few = none.copy()
+    few[:3] = True  # three couplings appear: outside the analysis, analysed anew (slack kept)
+    M = matrix(few)
+    solver.factorize(M)
+    assert solver.n_analyses == 2
+    assert np.allclose(solver.solve(b), np.linalg.solve(full(M), b), rtol=1e-10, atol=1e-12)
+    fewer = none.copy()
+    fewer[1] = True  # inside what was analysed: refactored only
+    M = matrix(fewer)
+    solver.factorize(M)
+    assert solver.n_analyses == 2
+    assert np.allclose(solver.solve(b), np.linalg.solve(full(M), b), rtol=1e-10, atol=1e-12)
+    solver.restart()  # a new step: the nonzeros differ from the analysis, so analysed anew
+    solver.factorize(M)
+    assert solver.n_analyses == 3 and solver._A.nnz == np.count_nonzero(lower(A).toarray()) + 1
+    solver.restart()  # the same nonzeros: the analysis is kept
+    solver.factorize(M)
+    assert solver.n_analyses == 3
