@@ -32,14 +32,20 @@ class IncrementalPotential:
         self._diagonal = None  # of matrix, once asked for after an assembly (diagonal())
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.correction = None
-        self.solver = CholeskySolver(self.matrix)
         self.variable = [e for e in energies if e.variable_pattern]
+        # Without contact the whole pattern fills: factor it as is, analysed once.
+        self.solver = CholeskySolver(self.matrix, nonzeros=bool(self.variable))
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
         # Called with each accepted Newton iterate; True when it changed an energy (the
         # adaptive barrier stiffness doubling within a step, sim/contact/stiffness.py).
         self.on_iterate = None
         self.should_stop = None  # asked before every Newton iteration (sim/recovery.py)
+
+    def restart(self) -> None:
+        """A new time step: the solver's analysis may depend only on this step's matrices
+        (a resumed run then repeats the uninterrupted one bit for bit)."""
+        self.solver.restart()
 
     def refresh_constant(self) -> None:
         """(Re)assemble the constant Hessian terms (after a time-step change)."""

@@ -20,7 +20,7 @@ def step(model: Model, state: State) -> StepStats:
     if model.dt != state.dt:
         model.set_dt(state.dt)
     sewing = model.sewing
-    model.potential.solver.restart()
+    model.potential.restart()
     stats = StepStats(step=state.step_count + 1, time=t_next)
     if sewing is not None and sewing.ramp(t_next):
         model.potential.refresh_constant()

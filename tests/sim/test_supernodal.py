@@ -136,3 +136,12 @@ def test_only_the_nonzeros_are_factored_and_their_analysis_kept_while_they_stay_
     solver.restart()  # the same nonzeros: the analysis is kept
     solver.factorize(M)
     assert solver.n_analyses == 3
+    # Without contact (nonzeros=False) the whole pattern is factored and analysed once,
+    # whatever its zeros, step starts included.
+    whole = linsolve.CholeskySolver(pattern, nonzeros=False)
+    for coupled in (none, few, fewer):
+        M = matrix(coupled)
+        whole.restart()
+        whole.factorize(M)
+        assert np.allclose(whole.solve(b), np.linalg.solve(full(M), b), rtol=1e-10, atol=1e-12)
+    assert whole.n_analyses == 1 and whole.n_factorizations == 3
