@@ -44,6 +44,8 @@ from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
 from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
 
+# Dress settings where 0 means "none" (newton_extrapolate 0: no doublings).
+COUNTS_FROM_ZERO = ("newton_extrapolate",)
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 
 
@@ -66,6 +68,14 @@ class DressOptions:
     settle_drag: float = 10.0  # 1/s: the cloth's velocity decays by exp(-settle_drag dt) a step after sewing
     mu: float = 0.2
     dhat: float = 1e-3
+    # Friction's static band and Newton's step doublings, as dress_rumba.toml (docs/findings.md,
+    # "Sliding friction and extrapolation"). At eps_v 1e-3 m/s a point held by static
+    # friction makes Newton jump across it every iteration (jumpsuit_04's first gravity
+    # step: 0.78 mm either way for 40 iterations); at 1e-2 the buckling cloth's full steps
+    # fall short of the energy's fall instead, which doublings take up. Gravity ramp:
+    # 21.1 -> 14.8 Newton iterations a step (docs/dressing.md, "Static friction band").
+    eps_v: float = 1e-2
+    newton_extrapolate: int = 4
 
     @classmethod
     def with_overrides(cls, overrides: dict | None) -> "DressOptions":
@@ -79,8 +89,9 @@ class DressOptions:
                 value = type(default)(v)
             except (TypeError, ValueError):
                 raise InputError(f"dress setting {k} = {v!r}: expected a {type(default).__name__}") from None
-            if isinstance(value, (int, float)) and not (np.isfinite(value) and value > 0):
-                raise InputError(f"dress setting {k} = {v!r}: must be a positive number")
+            zero = k in COUNTS_FROM_ZERO
+            if isinstance(value, (int, float)) and not (np.isfinite(value) and (value > 0 or (zero and value == 0))):
+                raise InputError(f"dress setting {k} = {v!r}: must be a positive number" + (" or 0" if zero else ""))
             options = replace(options, **{k: value})
         return options
 
@@ -235,8 +246,9 @@ def dress_scene(patches: Path, obstacle: dict, o: DressOptions, preroll: float |
         # Weightless while sewing: the garment cannot drop off the shrunk body before its
         # seams hold and the body has grown back; then gravity ramps in.
         "load": {"gravity": [0.0, 0.0, -9.81], "start": preroll or o.sew_time, "ramp": o.gravity_ramp},
-        "contact": {"dhat": o.dhat, "kappa": "adaptive", "mu": o.mu},
+        "contact": {"dhat": o.dhat, "kappa": "adaptive", "mu": o.mu, "eps_v": o.eps_v},
         "time": {"dt": o.dt, "steps_per_frame": o.steps_per_frame, "preroll": preroll or o.sew_time,
+                 "newton_extrapolate": o.newton_extrapolate,
                  "sewing": "quasistatic",
                  "settle_drag": o.settle_drag if drag else 0.0,
                  "frames": frames or int(np.ceil(o.max_time / (o.dt * o.steps_per_frame)))},

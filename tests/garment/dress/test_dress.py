@@ -13,7 +13,7 @@ from scipy.sparse.csgraph import connected_components
 
 from garment.cli import main
 from garment.dress.frame import detect
-from garment.dress.job import dress, mean_height, verdict
+from garment.dress.job import DressOptions, dress, mean_height, verdict
 from garment.io.garmentcode import read_garmentcode
 from garment.verify import intersecting_triangles, shared_vertices
 
@@ -128,6 +128,9 @@ def test_dress_command_refuses_unknown_settings_and_scenes_without_a_body(tmp_pa
     assert "unknown dress setting 'knot'" in capsys.readouterr().err
     assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "dt=-1"]) == 2
     assert "must be a positive number" in capsys.readouterr().err
+    assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "newton_extrapolate=-1"]) == 2
+    assert "must be a positive number or 0" in capsys.readouterr().err
+    assert DressOptions.with_overrides({"newton_extrapolate": "0", "eps_v": "1e-3"}).newton_extrapolate == 0
     scene = tmp_path / "scene.toml"
     scene.write_text('[[garment]]\nsource = "s.json"\n')
     assert main(["dress", str(scene), "-o", str(tmp_path / "o")]) == 2
