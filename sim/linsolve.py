@@ -121,8 +121,9 @@ class CholeskySolver:
     def __init__(self, A_lower: sp.csc_matrix, ordering: str = "default", nonzeros: bool = True):
         self._ordering = ordering
         self._nonzeros = nonzeros
-        self._columns = np.repeat(np.arange(A_lower.shape[1]), np.diff(A_lower.indptr))
-        self._diagonal = A_lower.indices == self._columns
+        if nonzeros:  # what picking out the nonzeros needs: each entry's column, the diagonal
+            self._columns = np.repeat(np.arange(A_lower.shape[1]), np.diff(A_lower.indptr))
+            self._diagonal = A_lower.indices == self._columns
         self._kept = None  # (nnz,) bool: the entries of the analysed pattern
         self._exact = True  # the next analysis: of the nonzeros alone, unless they are the kept ones
         self._factor = None
