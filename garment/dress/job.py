@@ -362,17 +362,23 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     report["speed_rms_mm_s"] = calm.get("trace", [])  # per exported frame after sewing
     report["worst_seams_mm"] = {k: round(v * 1e3, 2) for k, v in sorted(gaps.items(), key=lambda kv: -kv[1])[:5]}
     _write_garment(sim, outdir / "garment.obj", frame)
+    trace = calm.get("trace", [])
+    moving = None if calm["settled"] is not None or calm["timeout"] else (sim.state.t, trace[-1] if trace else None)
     report["status"], report["error"] = verdict(
         check.non_finite or not np.all(np.isfinite(sim.state.C)), check.crossings,
-        o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], calm["fell"])
+        o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], calm["fell"], moving)
 
 
 def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: float,
-            worst_seams_mm: dict, fell: tuple[float, float] | None = None) -> tuple[str, str | None]:
+            worst_seams_mm: dict, fell: tuple[float, float] | None = None,
+            moving: tuple[float, float | None] | None = None) -> tuple[str, str | None]:
     """(status, error) of a finished run, the gravest failure first: cloth through cloth or
     body is reported even when the run also ran out of time (it was reported as "timeout"
     at 6ff4f59, hiding jumpsuit_02's 16 crossings). fell: (t, m dropped) when the garment
-    slid off the body (a `placement` failure: this body cannot wear it)."""
+    slid off the body (a `placement` failure: this body cannot wear it). moving: (t, RMS
+    speed in mm/s of the last frame, None before gravity) when the run reached max_time
+    without coming to rest: not settled, so a `timeout` (skirt_04 was "ok" at 2.5 s while
+    two side panels flapped at 27 mm/s RMS)."""
     if non_finite:
         return "nan", None
     if crossings:
@@ -383,6 +389,9 @@ def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: floa
                              "holds it up (a waist or neckline wider than the body where it should rest?)")
     if timed_out is not None:
         return "timeout", f"not at rest after {timed_out:.0f} s of wall-clock time"
+    if moving is not None:
+        speed = "" if moving[1] is None else f" (RMS control-point speed {moving[1]:g} mm/s)"
+        return "timeout", f"not at rest after {moving[0]:.2f} s of simulated time (max_time){speed}"
     if gap >= 1e-3:
         return "sewing", "seams still open: " + ", ".join(f"{k} {v} mm" for k, v in worst_seams_mm.items())
     return "ok", None

@@ -92,7 +92,7 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     pattern = tube_skirt(tmp_path / "skirt.json")
     body = cylinder_body(tmp_path / "body.obj")
     out = tmp_path / "out"
-    report = dress(pattern, body, out, {"max_time": 1.0})
+    report = dress(pattern, body, out, {"max_time": 1.25})  # at rest at 1.12 s
     assert report["status"] == "ok", report
     assert report["body_frame"] == "m, Y-up"
     assert report["seam_gap_max_mm"] < 1.0
@@ -176,6 +176,9 @@ def test_the_report_names_the_gravest_failure_first():
     status, error = verdict(False, 0, 600.0, 0.5e-3, {"stitch1": 0.5}, fell=(1.23, 0.31))
     assert status == "placement" and "slid off the body: by t = 1.23 s it had dropped 0.31 m" in error
     assert verdict(False, 2, None, 0.5e-3, seams, fell=(1.0, 0.3))[0] == "intersection"
+    # Still moving when the simulated time ran out: not settled, whatever its seams.
+    assert verdict(False, 0, None, 0.5e-3, {"stitch1": 0.5}, moving=(2.52, 26.3)) == (
+        "timeout", "not at rest after 2.52 s of simulated time (max_time) (RMS control-point speed 26.3 mm/s)")
 
 
 def test_mean_height_of_a_garment_counts_every_vertex_of_every_piece():
