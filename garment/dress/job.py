@@ -40,47 +40,50 @@ from sim.errors import InputError, SimulationError
 from sim.files import atomic_write, output_folder
 
 from ..io.bodies import from_scene_frame, to_scene_frame
+from ..scene.schema import key, rule, within
 from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
 from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
 
-# Dress settings where 0 means "none" (newton_extrapolate 0: no doublings).
-COUNTS_FROM_ZERO = ("newton_extrapolate",)
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 
 
 @dataclass
 class DressOptions:
-    """The defaults of `garment dress`; every garment gets the same ones."""
+    """The defaults of `garment dress`; every garment gets the same ones. Each carries its
+    bounds as a scene key does (garment/scene/schema.py), checked on `--set`."""
 
-    knot_span_mm: float = 40.0
-    material: str = "cotton"
-    seam_stiffness: float = 1e7  # N/m per metre of seam
-    inset: float = 0.05  # m the body starts inside its surface (capped at 0.4 x thickness)
-    sew_time: float = 0.6  # s: seams close in the first half, the body grows back in the second
-    gravity_ramp: float = 0.2  # s: gravity, off while sewing, ramps in over this time
-    dt: float = 0.01
-    steps_per_frame: int = 4  # exported frames at 25 per second
-    max_time: float = 2.5  # s of simulated time at most
-    rest_speed: float = 0.01  # m/s RMS control-point speed counted as at rest
-    rest_frames: int = 3
-    timeout: float = 600.0  # s of wall-clock time
-    settle_drag: float = 10.0  # 1/s: the cloth's velocity decays by exp(-settle_drag dt) a step after sewing
-    mu: float = 0.2
-    dhat: float = 1e-3
+    knot_span_mm: float = key(40.0, doc="B-spline knot span in mm", gt=0)
+    material: str = key("cotton", doc="material preset")
+    seam_stiffness: float = key(1e7, doc="seam stiffness per metre of seam", unit="N/m^2", gt=0)
+    inset: float = key(0.05, doc="how far the body starts inside its surface (capped at 0.4 x thickness)",
+                       unit="m", gt=0)
+    sew_time: float = key(0.6, doc="seams close in the first half, the body grows back in the second", unit="s",
+                          gt=0)
+    gravity_ramp: float = key(0.2, doc="gravity, off while sewing, ramps in over this time", unit="s", gt=0)
+    dt: float = key(0.01, doc="time step", unit="s", gt=0)
+    steps_per_frame: int = key(4, doc="steps per exported frame (25 frames a second)", ge=1)
+    max_time: float = key(2.5, doc="simulated time at most", unit="s", gt=0)
+    rest_speed: float = key(0.01, doc="RMS control-point speed counted as at rest", unit="m/s", gt=0)
+    rest_frames: int = key(3, doc="frames at rest that end the run", ge=1)
+    timeout: float = key(600.0, doc="wall-clock time at most", unit="s", gt=0)
+    settle_drag: float = key(10.0, doc="after sewing the cloth's velocity decays by exp(-settle_drag dt) a step",
+                             unit="1/s", gt=0)
+    mu: float = key(0.2, doc="friction coefficient", gt=0)
+    dhat: float = key(1e-3, doc="contact distance", unit="m", gt=0)
     # Friction's static band and Newton's step doublings, as dress_rumba.toml (docs/findings.md,
     # "Sliding friction and extrapolation"). At eps_v 1e-3 m/s a point held by static
     # friction makes Newton jump across it every iteration (jumpsuit_04's first gravity
     # step: 0.78 mm either way for 40 iterations); at 1e-2 the buckling cloth's full steps
     # fall short of the energy's fall instead, which doublings take up. Gravity ramp:
     # 21.1 -> 14.8 Newton iterations a step (docs/dressing.md, "Static friction band").
-    eps_v: float = 1e-2
-    newton_extrapolate: int = 4
+    eps_v: float = key(1e-2, doc="friction's static band", unit="m/s", gt=0)
+    newton_extrapolate: int = key(4, doc="Newton step doublings (0: none)", ge=0)
 
     @classmethod
     def with_overrides(cls, overrides: dict | None) -> "DressOptions":
         options = cls()
-        known = {f.name: f.type for f in fields(cls)}
+        known = {f.name: f for f in fields(cls)}
         for k, v in (overrides or {}).items():
             if k not in known:
                 raise InputError(f"unknown dress setting {k!r}; known: {', '.join(known)}")
@@ -89,9 +92,9 @@ class DressOptions:
                 value = type(default)(v)
             except (TypeError, ValueError):
                 raise InputError(f"dress setting {k} = {v!r}: expected a {type(default).__name__}") from None
-            zero = k in COUNTS_FROM_ZERO
-            if isinstance(value, (int, float)) and not (np.isfinite(value) and (value > 0 or (zero and value == 0))):
-                raise InputError(f"dress setting {k} = {v!r}: must be a positive number" + (" or 0" if zero else ""))
+            bounds = known[k].metadata["key"].bounds
+            if isinstance(value, (int, float)) and not (np.isfinite(value) and within(value, **bounds)):
+                raise InputError(f"dress setting {k} = {v!r}: must be {rule(**bounds)}")
             options = replace(options, **{k: value})
         return options
 

@@ -127,9 +127,9 @@ def test_dress_command_refuses_unknown_settings_and_scenes_without_a_body(tmp_pa
     assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "knot=3"]) == 2
     assert "unknown dress setting 'knot'" in capsys.readouterr().err
     assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "dt=-1"]) == 2
-    assert "must be a positive number" in capsys.readouterr().err
+    assert "dress setting dt = '-1': must be > 0" in capsys.readouterr().err
     assert main(["dress", str(pattern), "--body", str(body), "-o", str(tmp_path / "o"), "--set", "newton_extrapolate=-1"]) == 2
-    assert "must be a positive number or 0" in capsys.readouterr().err
+    assert "must be >= 0" in capsys.readouterr().err
     assert DressOptions.with_overrides({"newton_extrapolate": "0", "eps_v": "1e-3"}).newton_extrapolate == 0
     scene = tmp_path / "scene.toml"
     scene.write_text('[[garment]]\nsource = "s.json"\n')
