@@ -85,3 +85,18 @@ def test_a_rebuilt_mesh_keeps_the_obstacles_rest_shape():
     mesh.move_obstacles(turned)
     assert mesh.focus(sim.C, turned, 0.01)  # rebuilt, now with part of the ball
     np.testing.assert_array_equal(mesh.mesh.rest_positions[mesh.n_cloth:], mesh.active(rest))
+
+
+def test_a_still_body_keeps_the_contact_data_and_a_moved_one_expires_them():
+    """A still body is moved onto its target every step: where it already is, nothing
+    expires (version kept, the triangles' bounding spheres kept); moved, both renew."""
+    sim = build_simulator(loads_scene(SCENE))
+    sim.step()
+    mesh = sim.model.barrier.contact
+    version, (centre, _) = mesh.version, mesh._triangle_spheres()
+    mesh.move_obstacles(mesh.obstacle_vertices.copy())
+    assert mesh.version == version and mesh._triangle_spheres()[0] is centre
+    shift = np.array([0.0, 0.0, 1e-4])
+    mesh.move_obstacles(mesh.obstacle_vertices + shift)
+    assert mesh.version == version + 1
+    np.testing.assert_allclose(mesh._triangle_spheres()[0], centre + shift, rtol=0, atol=1e-15)
