@@ -332,7 +332,8 @@ class Model:
             self.set_dt(state.dt)
         self.potential.projection_backoff = tuple(state.projection_backoff)
         if self.barrier is not None and state.obstacle_vertices is not None:
-            # move_obstacles also bumps the mesh version, so cached contact sets expire.
+            # Bodies moved elsewhere bump the mesh version, so cached contact sets expire
+            # (left where they are, the sets still hold: they are keyed by C).
             self.barrier.contact.move_obstacles(np.array(state.obstacle_vertices, float))
             self.barrier.kappa = state.kappa
         if self.drive is not None and state.drive_target is not None:
