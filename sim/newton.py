@@ -61,13 +61,25 @@ class NewtonOptions:
         return opts
 
 
-def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats: StepStats) -> np.ndarray:
-    """Returns the minimiser reached from C; fills the timing and iteration fields of stats."""
+def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats: StepStats,
+             path: list | None = None) -> np.ndarray:
+    """Returns the minimiser reached from C; fills the timing and iteration fields of stats.
+
+    path: when given, every point the solve moves the cloth and the bodies through is
+    appended as (C, B) (B: the obstacle vertices then, None without bodies), C included:
+    straight segments, each collision free against the contact mesh of the solve."""
     C = C.copy()
     free = ip.free_points
     E = ip.value(C)
     history = []
     drive = ip.drive
+    done = stats.newton_iterations  # a solve carried on (stepper._within_reach) counts on
+
+    def passed(C):
+        if path is not None:
+            path.append((C, None if drive is None else drive.mesh.obstacle_vertices))
+
+    passed(C)
     moving = drive is not None and drive.pending
     auto = opts.project == "auto"
     # Iterations to go projected, and the next back-off after a failure; carried over
@@ -98,7 +110,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
             stats.t_assembly += time.perf_counter() - t1
             p = _direction(ip, C, g, drive if moving else None, opts, stats, allow_fail=False)
         t3 = time.perf_counter()
-        stats.newton_iterations = it + 1
+        stats.newton_iterations = done + it + 1
         if opts.record_gradients:
             history.append(float(np.linalg.norm(g)))
         stats.residual = float(np.abs(p).max(initial=0.0)) / opts.dt
@@ -129,6 +141,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
             trial[free] = C[free] + alpha * step
             drive.advance(alpha)
             C, E = trial, ip.value(trial)
+            passed(C)
             stats.line_search_steps += 1
             stats.t_line_search += time.perf_counter() - t3
             # A body stopped by trapped cloth stays behind for this step: one pinched
@@ -140,6 +153,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
             if drive.pending and not moving:
                 _advance_each(ip, drive, C, stats)
                 E = ip.value(C)
+                passed(C)
             continue
         while True:
             trial[free] = C[free] + alpha * step
@@ -157,6 +171,7 @@ def minimize(ip: IncrementalPotential, C: np.ndarray, opts: NewtonOptions, stats
         if opts.extrapolate and alpha == 1.0 and E - E_new > EXTRAPOLATE_RATIO * -0.5 * slope:
             trial, E_new = _extrapolate(ip, trial, E_new, step, free, opts.extrapolate, stats)
         C, E = trial, E_new
+        passed(C)
         if ip.on_iterate is not None and ip.on_iterate(C):
             E = ip.value(C)
     if drive is not None and drive.animated:

@@ -100,3 +100,23 @@ def test_a_still_body_keeps_the_contact_data_and_a_moved_one_expires_them():
     mesh.move_obstacles(mesh.obstacle_vertices + shift)
     assert mesh.version == version + 1
     np.testing.assert_allclose(mesh._triangle_spheres()[0], centre + shift, rtol=0, atol=1e-15)
+
+
+def test_a_step_beyond_reach_is_checked_along_the_way_the_cloth_went():
+    """The cloth moved beyond its contact region: the way it went, not the chord, decides
+    whether it passed through a left-out obstacle (stepper._went_clear). The sheet goes
+    from beside the ball to its other side over the top; the chord runs through it."""
+    from sim.stepper import _went_clear
+
+    sim = build_simulator(loads_scene(DROP.format(height=0.3)))
+    potential, contact = sim.model.potential, sim.model.barrier.contact
+    assert contact.body_ids is None  # the whole ball and ground, before any focus
+    B = contact.obstacle_vertices
+    top = sim.state.C
+    start, end = top + [-0.4, 0.0, -0.18], top + [0.4, 0.0, -0.18]  # 4 cm below the ball's top
+    assert potential.max_step(start, end) < 1.0
+    over = [(start, B), (top + [-0.4, 0.0, 0.0], B), (top + [0.4, 0.0, 0.0], B), (end, B)]
+    assert _went_clear(potential, contact, over)
+    assert not _went_clear(potential, contact, [over[0], over[-1]])
+    through = [(start, B), (top + [0.0, 0.0, -0.18], B), (end, B)]  # into the ball and out
+    assert not _went_clear(potential, contact, through)

@@ -134,8 +134,17 @@ def test_tight_tolerance_is_reachable():
     C = sim.C.copy()
     C[free] += 3e-3 * d / np.abs(d).max()
     stats = StepStats()
-    minimize(ip, C, NewtonOptions(tol=1e-9, dt=sim.dt, project=False, max_iterations=30), stats)
+    path = []
+    C_end = minimize(ip, C, NewtonOptions(tol=1e-9, dt=sim.dt, project=False, max_iterations=30), stats, path)
     assert stats.converged and stats.newton_iterations <= 10
+    # The way it went: the start, then one point per iteration that moved (the last one
+    # only tests convergence); no bodies here.
+    assert len(path) == stats.newton_iterations and path[-1][0] is C_end and path[1][1] is None
+    np.testing.assert_array_equal(path[0][0], C)
+    # A solve carried on from there (stepper._within_reach) counts on from the first.
+    first = stats.newton_iterations
+    minimize(ip, C_end, NewtonOptions(tol=1e-9, dt=sim.dt, project=False, max_iterations=30), stats)
+    assert stats.newton_iterations == first + 1
 
 
 # ------------------------------------------------------------------ pins
