@@ -43,6 +43,7 @@ from ..io.bodies import from_scene_frame, to_scene_frame
 from ..scene.schema import key, rule, within
 from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .frame import BodyFrame, pattern_up, read_body
+from .girth import loose_opening, trunk_centre
 from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
@@ -221,11 +222,7 @@ def fit_to_body(patches, body_V: np.ndarray) -> None:
     ratio, its horizontal offset kept about the body's centre. On GarmentCode's own bodies
     this moves nothing by more than a few millimetres."""
     lo, hi = body_V.min(0), body_V.max(0)
-    # The trunk's centre: the middle of the vertices between 45 and 65 % of the height
-    # (feet and hands held forward would pull a bounding box's centre off the trunk).
-    h = (body_V[:, 2] - lo[2]) / (hi[2] - lo[2])
-    trunk = body_V[(h > 0.45) & (h < 0.65)]
-    centre = 0.5 * (trunk.min(0) + trunk.max(0))
+    centre = trunk_centre(body_V)
     ratio = (hi[2] - lo[2]) / GARMENTCODE_HEIGHT
     for p in patches:
         c = p.world.reshape(-1, 3).mean(0)
@@ -369,9 +366,30 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     report["worst_seams_mm"] = {k: round(v * 1e3, 2) for k, v in sorted(gaps.items(), key=lambda kv: -kv[1])[:5]}
     _write_garment(sim, outdir / "garment.obj", frame)
     moving = None if calm["settled"] is not None or calm["timeout"] else (sim.state.t, trace[-1] if trace else None)
+    fell = None if calm["fell"] is None else (*calm["fell"], _loose_opening(sim))
     report["status"], report["error"] = verdict(
         check.non_finite or not np.all(np.isfinite(sim.state.C)), check.crossings,
-        o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], calm["fell"], moving)
+        o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], fell, moving)
+
+
+def _loose_opening(sim) -> str | None:
+    """Why a garment that slid off could not stay on, when its top opening is wider than
+    the body's trunk anywhere (garment/dress/girth.py): a sentence naming the opening's
+    panels and both lengths, or None."""
+    pos, body_pos = sim.positions(), sim.obstacle_positions()
+    cloth = [(m.name, pos[m.name], m.faces) for m in sim.topologies() if m.kind == "cloth"]
+    bodies = [(body_pos[m.name], m.faces) for m in sim.topologies() if m.kind != "cloth"]
+    if not cloth or not bodies:
+        return None
+    X, T = shared_vertices(*stack_meshes([(V, F) for _, V, F in cloth]))
+    found = loose_opening(X, T, *stack_meshes(bodies))
+    if found is None:
+        return None
+    loop, length, girth, height = found
+    on_loop = {tuple(p) for p in X[loop]}
+    panels = [name for name, V, _ in cloth if any(tuple(p) in on_loop for p in V)]
+    return (f"its top opening ({', '.join(panels)}) is {100 * length:.0f} cm round, and the body's trunk is at "
+            f"most {100 * girth:.0f} cm round (at {height:.2f} m): narrow that waist or neckline in the pattern")
 
 
 def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: float,
@@ -379,7 +397,7 @@ def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: floa
             moving: tuple[float, float | None] | None = None) -> tuple[str, str | None]:
     """(status, error) of a finished run, the gravest failure first: cloth through cloth or
     body is reported even when the run also ran out of time (it was reported as "timeout"
-    at 6ff4f59, hiding jumpsuit_02's 16 crossings). fell: (t, m dropped) when the garment
+    at 6ff4f59, hiding jumpsuit_02's 16 crossings). fell: (t, m dropped[, why]) when the garment
     slid off the body (a `placement` failure: this body cannot wear it). moving: (t, RMS
     speed in mm/s of the last frame, None before gravity) when the run reached max_time
     without coming to rest: not settled, so a `timeout` (skirt_04 was "ok" at 2.5 s while
@@ -389,9 +407,10 @@ def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: floa
     if crossings:
         return "intersection", f"{crossings} intersecting triangle pairs over the exported frames"
     if fell is not None:
+        why = fell[2] if len(fell) > 2 and fell[2] else ("nothing on the body holds it up (a waist or neckline "
+                                                         "wider than the body where it should rest?)")
         return "placement", (f"the garment slid off the body: by t = {fell[0]:.2f} s it had dropped "
-                             f"{fell[1]:.2f} m (mean height) from where it was placed, and nothing on the body "
-                             "holds it up (a waist or neckline wider than the body where it should rest?)")
+                             f"{fell[1]:.2f} m (mean height) from where it was placed; {why}")
     if timed_out is not None:
         return "timeout", f"not at rest after {timed_out:.0f} s of wall-clock time"
     if moving is not None:
