@@ -8,7 +8,9 @@ writes out/patches.json (the conformed garment as placed), out/run.rrd, out/garm
 out/report.json, and returns the report: status ("ok", or the failure category conform,
 placement, sewing, intersection, timeout, nan), seam_gap_max_mm, crossings (the
 independent check, garment/verify.py, summed over every exported frame), dofs, seconds,
-settle_time_s. Bad input (a file that cannot be read) raises sim.errors.InputError.
+settle_time_s, and where the time went: placing_s, then steps, seconds and Newton
+iterations of each phase (sewing, gravity_ramp, settling). Bad input (a file that cannot
+be read) raises sim.errors.InputError.
 
 The defaults are one mechanism for every garment (docs/dressing.md):
 - sewing: the body starts shrunk (`inset`, at most 0.4 x its local thickness) so seams
@@ -298,6 +300,18 @@ class _Check:
         pass
 
 
+# The phases of a dress run, for the report's time split.
+PHASES = ("sewing", "gravity_ramp", "settling")
+
+
+def phase_at(t: float, o: DressOptions) -> str:
+    """The phase of the step ending at t: sewing (seams close, the body grows back),
+    gravity_ramp, settling."""
+    if t <= o.sew_time + 1e-9:
+        return "sewing"
+    return "gravity_ramp" if t <= o.sew_time + o.gravity_ramp + 1e-9 else "settling"
+
+
 def mean_height(cloth: list) -> float:
     """Mean z (m) of the vertices of all cloth meshes [(V, F)]."""
     return float(np.concatenate([V[:, 2] for V, _ in cloth]).mean())
@@ -317,6 +331,9 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     frames = scene.time.frames
     check = _Check()
     calm = {"frames": 0, "settled": None, "timeout": False, "steps": 0, "fell": None}
+    phases = report["phases"] = {name: {"steps": 0, "seconds": 0.0, "newton_iterations": 0} for name in PHASES}
+    clock = [time.perf_counter()]
+    report["placing_s"] = round(clock[0] - start, 2)  # reading, conforming, placing, building
 
     def at_rest() -> bool:
         if time.perf_counter() - start > o.timeout:
@@ -332,6 +349,14 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     def on_step(st) -> None:
         t = sim.state.t
         calm["steps"] += 1
+        # Wall-clock time since the last step (its frame's output and checks included);
+        # the iterations of a step split in two are those of its last half.
+        phase = phases[phase_at(t, o)]
+        now = time.perf_counter()
+        phase["steps"] += 1
+        phase["seconds"] = round(phase["seconds"] + now - clock[0], 2)
+        phase["newton_iterations"] += st.newton_iterations
+        clock[0] = now
         if calm["steps"] % o.steps_per_frame:
             return
         if on_frame is not None:
