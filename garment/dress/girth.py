@@ -51,7 +51,10 @@ def loop_length(X: np.ndarray, loop: np.ndarray) -> float:
 def trunk_girth(body_V: np.ndarray, body_F: np.ndarray, z: float, centre: np.ndarray) -> float | None:
     """Length (m) round the body's cross-section at height z that encloses `centre` (x, y):
     the trunk, not an arm beside it. None where no loop does (between the legs)."""
-    mesh = trimesh.Trimesh(body_V, body_F, process=False)
+    return _girth(trimesh.Trimesh(body_V, body_F, process=False), z, centre)
+
+
+def _girth(mesh: trimesh.Trimesh, z: float, centre: np.ndarray) -> float | None:
     segments = trimesh.intersections.mesh_plane(mesh, [0.0, 0.0, 1.0], [0.0, 0.0, z])
     if len(segments) == 0:
         return None
@@ -104,8 +107,9 @@ def widest_trunk(body_V: np.ndarray, body_F: np.ndarray) -> tuple[float, float] 
     """(girth m, height m) of the trunk where it is widest (hips or chest), or None."""
     lo, hi = body_V[:, 2].min(), body_V[:, 2].max()
     centre = trunk_centre(body_V)[:2]
+    mesh = trimesh.Trimesh(body_V, body_F, process=False)
     found = [(g, z) for z in np.linspace(lo + TRUNK[0] * (hi - lo), lo + TRUNK[1] * (hi - lo), LEVELS)
-             if (g := trunk_girth(body_V, body_F, float(z), centre)) is not None]
+             if (g := _girth(mesh, float(z), centre)) is not None]
     return max(found) if found else None
 
 
