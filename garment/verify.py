@@ -81,9 +81,15 @@ def _candidates(T1, T2, same: bool) -> tuple[np.ndarray, np.ndarray]:
         I, J = pairs[:, 0], pairs[:, 1]
     else:
         m = cKDTree(c1).sparse_distance_matrix(cKDTree(c2), reach, output_type="ndarray")
-        I, J = m["i"].astype(np.int64), m["j"].astype(np.int64)
-    keep = (hi2[J] >= lo1[I]).all(1) & (lo2[J] <= hi1[I]).all(1)
-    return I[keep], J[keep]
+        I, J = m["i"], m["j"]
+    # One axis at a time on what the last kept: the spheres' pairs are ~50x the boxes'
+    # (a jumpsuit on a 47.5K-triangle body: 2.9M -> 62K), and gathering all three axes of
+    # every pair took 0.6 s of a 1 s check (now 0.2 s).
+    for k in range(3):
+        a_lo, a_hi, b_lo, b_hi = (np.ascontiguousarray(x[:, k]) for x in (lo1, hi1, lo2, hi2))
+        keep = (b_hi[J] >= a_lo[I]) & (b_lo[J] <= a_hi[I])
+        I, J = I[keep], J[keep]
+    return I.astype(np.int64), J.astype(np.int64)
 
 
 def _sweep(lo1, hi1, lo2, hi2, same: bool) -> tuple[np.ndarray, np.ndarray]:
