@@ -181,6 +181,8 @@ def test_the_report_names_the_gravest_failure_first():
     # Slid off the body: said as such, before the time limit it would otherwise run into.
     status, error = verdict(False, 0, 600.0, 0.5e-3, {"stitch1": 0.5}, fell=(1.23, 0.31))
     assert status == "placement" and "slid off the body: by t = 1.23 s it had dropped 0.31 m" in error
+    why = "its top opening (wb_back, wb_front) is 157 cm round, and the body's trunk is at most 107 cm round"
+    assert verdict(False, 0, None, 0.5e-3, {"stitch1": 0.5}, fell=(1.28, 0.26, why))[1].endswith("; " + why)
     assert verdict(False, 2, None, 0.5e-3, seams, fell=(1.0, 0.3))[0] == "intersection"
     # Still moving when the simulated time ran out: not settled, whatever its seams.
     assert verdict(False, 0, None, 0.5e-3, {"stitch1": 0.5}, moving=(2.52, 26.3)) == (
