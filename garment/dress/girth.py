@@ -9,7 +9,9 @@ nothing holds it up, and the report should say so in those terms.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import trimesh
+from scipy.sparse.csgraph import connected_components
 
 # Heights of the trunk, as fractions of the body's height, searched for its widest girth:
 # from about the crotch to below the armpits.
@@ -59,24 +61,13 @@ def _girth(mesh: trimesh.Trimesh, z: float, centre: np.ndarray) -> float | None:
     if len(segments) == 0:
         return None
     a, b = segments[:, 0, :2], segments[:, 1, :2]
-    # Which loop a segment belongs to: connect segments sharing an end point.
+    # Which loop a segment belongs to: segments sharing an end point are connected.
     ends = np.round(np.concatenate([a, b]) / 1e-7).astype(np.int64)
     _, key = np.unique(ends, axis=0, return_inverse=True)
     key = key.ravel()
-    label = np.arange(key.max() + 1)
-
-    def root(i):
-        while label[i] != i:
-            label[i] = label[label[i]]
-            i = label[i]
-        return i
-
     n = len(a)
-    for i in range(n):
-        ra, rb = root(key[i]), root(key[i + n])
-        if ra != rb:
-            label[ra] = rb
-    loop = np.array([root(k) for k in key[:n]])
+    joins = sp.coo_matrix((np.ones(n), (key[:n], key[n:])), shape=(key.max() + 1,) * 2)
+    loop = connected_components(joins, directed=False)[1][key[:n]]
     # The loop a ray from the centre along +x crosses an odd number of times encloses it.
     cx, cy = centre
     dy = b[:, 1] - a[:, 1]

@@ -401,12 +401,11 @@ def _loose_opening(sim) -> str | None:
     """Why a garment that slid off could not stay on, when its top opening is wider than
     the body's trunk anywhere (garment/dress/girth.py): a sentence naming the opening's
     panels and both lengths, or None."""
-    pos, body_pos = sim.positions(), sim.obstacle_positions()
-    cloth = [(m.name, pos[m.name], m.faces) for m in sim.topologies() if m.kind == "cloth"]
+    body_pos = sim.obstacle_positions()
     bodies = [(body_pos[m.name], m.faces) for m in sim.topologies() if m.kind != "cloth"]
+    cloth, X, T = _garment_mesh(sim)
     if not cloth or not bodies:
         return None
-    X, T = shared_vertices(*stack_meshes([(V, F) for _, V, F in cloth]))
     found = loose_opening(X, T, *stack_meshes(bodies))
     if found is None:
         return None
@@ -451,6 +450,15 @@ def _write_garment(sim, path: Path, frame: BodyFrame) -> None:
     in the body file's units and axes."""
     from viz.recording import export_mesh
 
-    pos = sim.positions()
-    X, T = shared_vertices(*stack_meshes([(pos[m.name], m.faces) for m in sim.topologies() if m.kind == "cloth"]))
+    _, X, T = _garment_mesh(sim)
     export_mesh(path, from_scene_frame(X, frame.scale, frame.up), T)
+
+
+def _garment_mesh(sim):
+    """The cloth pieces [(name, V, F)] as they stand, and the garment as one mesh (X, T),
+    sewn panels joined at their shared seam vertices."""
+    pos = sim.positions()
+    cloth = [(m.name, pos[m.name], m.faces) for m in sim.topologies() if m.kind == "cloth"]
+    if not cloth:
+        return cloth, np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return cloth, *shared_vertices(*stack_meshes([(V, F) for _, V, F in cloth]))
