@@ -40,9 +40,12 @@ def drive(sim, frames: int, steps_per_frame: int = 1, sinks: Iterable = (), *,
           resume: Checkpoint | None = None, checkpoint: CheckpointPolicy | None = None,
           should_stop: Callable[[], bool] = lambda: False, floor: float | None = None,
           on_step: Callable[[StepStats], None] | None = None,
-          on_warning: Callable[[str], None] | None = None, split: bool = True) -> RunResult:
+          on_warning: Callable[[str], None] | None = None, split: bool = True,
+          frame_time: float | None = None) -> RunResult:
     """Run frames (resume.frame, frames] of `steps_per_frame` steps each (from frame 0
-    when not resuming), emitting the start frame first.
+    when not resuming), emitting the start frame first. With `frame_time` (s), a frame
+    is that long instead, in as many steps of the current dt as fit (at least one): the
+    caller may change the time step between frames (sim.set_dt, from on_step).
 
     Sinks are opened here and always closed. A step failing at the split floor raises
     SimulationError after a checkpoint of the last completed frame is written; with
@@ -73,7 +76,8 @@ def drive(sim, frames: int, steps_per_frame: int = 1, sinks: Iterable = (), *,
         for k in range(result.last_frame + 1, frames + 1):
             frame_start = sim.state.copy()
             steps = []
-            for _ in range(steps_per_frame):
+            n = steps_per_frame if frame_time is None else max(1, round(frame_time / sim.dt))
+            for _ in range(n):
                 if should_stop():
                     sim.state = frame_start  # drop the partial frame
                     result.stopped = True

@@ -81,6 +81,32 @@ def test_resume_repeats_the_uninterrupted_run(tmp_path, one_ipc_thread):
     assert not list(tmp_path.glob(".*tmp"))
 
 
+def test_frames_keep_their_length_when_the_time_step_changes():
+    """drive(frame_time=...): a caller that raises dt between frames (garment dress, once
+    sewn) gets frames of the same length in fewer steps."""
+    sim = build_simulator(loads_scene(HANGING_SHEET))
+
+    class Times:
+        def open(self, meshes):
+            self.frames = []
+
+        def write(self, frame):
+            self.frames.append((frame.time, len(frame.steps)))
+
+        def close(self):
+            pass
+
+    def on_step(st):
+        if sim.t >= 0.04 - 1e-9:
+            sim.set_dt(0.02)
+
+    times = Times()
+    drive(sim, 5, 2, [times], on_step=on_step, frame_time=0.02)
+    assert [n for _, n in times.frames] == [0, 2, 2, 1, 1, 1]
+    np.testing.assert_allclose([t for t, _ in times.frames], [0.0, 0.02, 0.04, 0.06, 0.08, 0.1], atol=1e-12)
+    assert sim.dt == 0.02 and sim.step_count == 7
+
+
 def test_checkpoint_round_trip(tmp_path):
     scene = loads_scene(CONTACT)
     sim = build_simulator(scene)
