@@ -353,7 +353,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     report["dofs"] = int(sim.n_dofs)
     frames = scene.time.frames
     check = _Check()
-    calm = {"frames": 0, "settled": None, "timeout": False, "steps": 0, "fell": None}
+    calm = {"frames": 0, "settled": None, "timeout": False, "fell": None}
     phases = report["phases"] = {name: {"steps": 0, "seconds": 0.0, "newton_iterations": 0} for name in PHASES}
     clock = [time.perf_counter()]
     report["placing_s"] = round(clock[0] - start, 2)  # reading, conforming, placing, building
@@ -371,7 +371,6 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
 
     def on_step(st) -> None:
         t = sim.state.t
-        calm["steps"] += 1
         # Wall-clock time since the last step (its frame's output and checks included);
         # the iterations of a step split in two are those of its last half.
         phase = phases[phase_at(t, o)]
@@ -381,7 +380,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
         phase["newton_iterations"] += st.newton_iterations
         clock[0] = now
         if t >= o.sew_time - 1e-9 and sim.dt != o.settle_dt:
-            sim.set_dt(o.settle_dt)
+            sim.set_dt(o.settle_dt)  # sewn: longer steps to the rest shape (DressOptions.settle_dt)
 
     def on_frame_written(frame) -> None:
         t, st = frame.time, frame.steps[-1]
