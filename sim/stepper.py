@@ -64,7 +64,7 @@ def step(model: Model, state: State) -> StepStats:
             stats.extra["kappa"] = model.stiffness.update(model.potential, x0)
     pulled_shut = sewing is not None and sewing.pulled_shut(t_next, state.dt)
     newton = sewing.newton(model.newton) if pulled_shut else model.newton
-    C_new = minimize(model.potential, x0, newton, stats, path)
+    C_new = minimize(model.potential, x0, newton, stats, path, origin=state.C)
     if reach is not None:
         C_new = _within_reach(model, state, path, C_new, reach, stats, newton)
     if sewing is not None:
@@ -131,7 +131,7 @@ def _within_reach(model: Model, state: State, path: list, C_new, reach: float, s
                            f"{reach:.3g} m, and through an obstacle left out")
     if model.friction is not None:
         model.friction.lag(state.C)
-    return minimize(model.potential, C_new, newton, stats)
+    return minimize(model.potential, C_new, newton, stats, origin=state.C)
 
 
 def _went_clear(potential, contact, path: list) -> bool:

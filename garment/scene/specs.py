@@ -139,6 +139,9 @@ class TimeSpec:
     frames: int = key(100, doc="frames simulated", ge=1)
     steps_per_frame: int = key(1, doc="time steps per frame", ge=1)
     newton_tol: float = key(1e-2, doc="Newton stops when ||dC||_inf / dt < newton_tol", unit="m/s", gt=0)
+    newton_relative_tol: float = key(
+        0.0, ge=0, doc="Newton may stop at this fraction of the step's RMS control-point speed instead "
+        "(0: newton_tol only; garment dress: 0.1)")
     max_newton_iterations: int = key(100, doc="Newton iterations per step at most", ge=1)
     newton_extrapolate: int = key(
         0, ge=0, doc="doublings tried after a full step that beats the Newton model (sliding friction; sim/newton.py)"

@@ -370,3 +370,47 @@ def test_line_search_starts_within_max_speed_of_a_pressed_sliding_contact():
     capped, count = _longest_ccd_move(10.0)
     assert count >= 1
     assert capped <= 10.0 * 0.01 * (1 + 1e-12)
+
+
+# ------------------------------------------------------------------ forcing (settling)
+
+
+def _falling_sheet(relative: float) -> Simulator:
+    """A sheet held at two corners, thrown down at 1 m/s: it swings under gravity."""
+    return build_simulator(loads_scene(f"""
+[[cloth]]
+size = [0.3, 0.3]
+control_points = [10, 10]
+velocity = [0.0, 0.0, -1.0]
+[[pin]]
+corners = ["u0v1", "u1v1"]
+[time]
+dt = 0.01
+newton_relative_tol = {relative}
+"""))
+
+
+def test_relative_tolerance_follows_the_speed_and_falls_back_to_the_absolute_one():
+    from sim.newton import tolerance
+
+    opts = NewtonOptions(tol=1e-2, dt=0.01, relative_tol=0.1)
+    origin = np.zeros((4, 3))
+    assert tolerance(opts, origin, origin) == 1e-2  # at rest: the paper's rule
+    C = origin + 0.01 * np.array([0.3, 0.0, 0.4])  # moved at an RMS speed of 0.5 m/s
+    assert tolerance(opts, C, origin) == pytest.approx(0.05)
+    assert tolerance(NewtonOptions(tol=1e-2, dt=0.01), C, origin) == 1e-2  # off unless asked for
+    assert tolerance(opts, C, None) == 1e-2
+
+
+def test_relative_tolerance_saves_iterations_and_stays_within_its_bound():
+    """Steps solved to 10 % of a 1 m/s fall take fewer Newton iterations; the cloth ends
+    within that tolerance's reach (0.1 x 1 m/s x dt a step) of the fully solved one."""
+    exact, loose = _falling_sheet(0.0), _falling_sheet(0.1)
+    its = [0, 0]
+    for _ in range(3):
+        its[0] += exact.step().newton_iterations
+        st = loose.step()
+        its[1] += st.newton_iterations
+        assert st.converged
+    assert its[1] < its[0]
+    assert np.abs(loose.C - exact.C).max() < 3 * 0.1 * 1.0 * 0.01
