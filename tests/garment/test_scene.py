@@ -154,7 +154,7 @@ EVERY_KEY = _with(FULL, {
     "[cloth.material]": "E_bd = 1e4",
     'corners = ["u0v0", "u1v0"]': "sides = []\nbox = [[0.0, 0.0], [1.0, 0.1]]\ndepth = 1\nstart = 0.0",
     "pressure = 0.0": "pressure_direction = [0, 0, 1]",
-    'mode = "dynamic"': 'newton_extrapolate = 0\npreroll = 0.1\nsewing = "quasistatic"\nsettle_drag = 0.0',
+    'mode = "dynamic"': 'newton_extrapolate = 0\nnewton_relative_tol = 0.0\npreroll = 0.1\nsewing = "quasistatic"\nsettle_drag = 0.0',
 }) + f"""
 [[obstacle]]
 name = "ball"
@@ -611,10 +611,12 @@ def test_scene_error_is_a_value_error_and_pickles():
 def test_newton_extrapolate_reaches_the_solver(tmp_path):
     from sim.simulator import Simulator
 
-    scene = load_scene(write(tmp_path, CLOTH + "[time]\nnewton_extrapolate = 3\nnewton_tol = 0.02\n"))
+    scene = load_scene(write(tmp_path, CLOTH + "[time]\nnewton_extrapolate = 3\nnewton_tol = 0.02\n"
+                                                 "newton_relative_tol = 0.1\n"))
     opts = build_simulator(scene).model.newton
-    assert (opts.extrapolate, opts.tol) == (3, 0.02)
-    assert build_simulator(load_scene(write(tmp_path, CLOTH, "plain.toml"))).model.newton.extrapolate == 0
+    assert (opts.extrapolate, opts.tol, opts.relative_tol) == (3, 0.02, 0.1)
+    plain = build_simulator(load_scene(write(tmp_path, CLOTH, "plain.toml"))).model.newton
+    assert (plain.extrapolate, plain.relative_tol) == (0, 0.0)
 
 
 def test_material_default_is_cotton():
