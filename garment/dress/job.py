@@ -401,6 +401,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
         closed = max(gaps.values(), default=0.0) < 1e-3
         calm.setdefault("trace", []).append(round(rms * 1e3, 1))
         calm["frames"] = calm["frames"] + 1 if rms < o.rest_speed and closed else 0
+        calm["still"] = calm.get("still", 0) + 1 if rms < o.rest_speed else 0  # seams or not
         if calm["frames"] >= o.rest_frames and calm["settled"] is None:
             calm["settled"] = t
 
@@ -428,7 +429,8 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     fell = None if calm["fell"] is None else (*calm["fell"], _loose_opening(sim))
     report["status"], report["error"] = verdict(
         check.non_finite or not np.all(np.isfinite(sim.state.C)), check.crossings,
-        o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], fell, moving)
+        o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], fell, moving,
+        still=calm.get("still", 0) >= o.rest_frames)
 
 
 def _loose_opening(sim) -> str | None:
@@ -452,14 +454,16 @@ def _loose_opening(sim) -> str | None:
 
 def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: float,
             worst_seams_mm: dict, fell: tuple[float, float] | None = None,
-            moving: tuple[float, float | None] | None = None) -> tuple[str, str | None]:
+            moving: tuple[float, float | None] | None = None, still: bool = False) -> tuple[str, str | None]:
     """(status, error) of a finished run, the gravest failure first: cloth through cloth or
     body is reported even when the run also ran out of time (it was reported as "timeout"
     at 6ff4f59, hiding jumpsuit_02's 16 crossings). fell: (t, m dropped[, why]) when the garment
     slid off the body (a `placement` failure: this body cannot wear it). moving: (t, RMS
     speed in mm/s of the last frame, None before gravity) when the run reached max_time
     without coming to rest: not settled, so a `timeout` (skirt_04 was "ok" at 2.5 s while
-    its side seams slid off the hands at 0.1-0.2 m/s)."""
+    its side seams slid off the hands at 0.1-0.2 m/s). still: the cloth was at rest over the
+    last rest_frames frames, seams or not: with seams open that is a `sewing` failure, not a
+    timeout (jumpsuit_00 lay still from 1.1 s to the 10-minute limit, two seams 6 mm open)."""
     if non_finite:
         return "nan", None
     if crossings:
@@ -469,13 +473,16 @@ def verdict(non_finite: bool, crossings: int, timed_out: float | None, gap: floa
                                                          "wider than the body where it should rest?)")
         return "placement", (f"the garment slid off the body: by t = {fell[0]:.2f} s it had dropped "
                              f"{fell[1]:.2f} m (mean height) from where it was placed; {why}")
+    seams = ", ".join(f"{k} {v} mm" for k, v in worst_seams_mm.items())
+    if still and gap >= 1e-3:
+        return "sewing", "at rest with seams still open: " + seams
     if timed_out is not None:
         return "timeout", f"not at rest after {timed_out:.0f} s of wall-clock time"
     if moving is not None:
         speed = "" if moving[1] is None else f" (RMS control-point speed {moving[1]:g} mm/s)"
         return "timeout", f"not at rest after {moving[0]:.2f} s of simulated time (max_time){speed}"
     if gap >= 1e-3:
-        return "sewing", "seams still open: " + ", ".join(f"{k} {v} mm" for k, v in worst_seams_mm.items())
+        return "sewing", "seams still open: " + seams
     return "ok", None
 
 

@@ -177,6 +177,10 @@ def test_the_report_names_the_gravest_failure_first():
     status, error = verdict(False, 16, 600.0, 2.5e-3, seams)  # crossings in a run that also timed out
     assert status == "intersection" and error.startswith("16 intersecting")
     assert verdict(False, 0, 600.0, 2.5e-3, seams) == ("timeout", "not at rest after 600 s of wall-clock time")
+    # Lying still with a seam open until the limit: the seam is what failed, not the time.
+    assert verdict(False, 0, 600.0, 2.5e-3, seams, still=True) == ("sewing",
+                                                                   "at rest with seams still open: stitch1 2.5 mm")
+    assert verdict(False, 0, 600.0, 0.5e-3, {"stitch1": 0.5}, still=True)[0] == "timeout"
     assert verdict(False, 0, None, 2.5e-3, seams) == ("sewing", "seams still open: stitch1 2.5 mm")
     assert verdict(False, 0, None, 0.9996e-3, {"stitch1": 1.0}) == ("ok", None)
     # Slid off the body: said as such, before the time limit it would otherwise run into.
