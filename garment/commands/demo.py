@@ -43,9 +43,7 @@ def demo_scene(out: Path, frames: int | None):
     from garment.io.rigged import MAKEHUMAN_CMU as d
     from garment.io.rigged import read_makehuman, rig_to_scene
 
-    # The dance is followed at 0.01 s steps (the dress job's 0.02 s sewing step is for a
-    # still body); the scene has one step throughout.
-    options = DressOptions.with_overrides({"dt": 0.01, "steps_per_frame": 4})
+    options = DressOptions()
     bind = rig_to_scene(read_makehuman(d / "body.obj", "body", d / "rig.cmu_mb.json", d / "weights.cmu_mb.json"),
                         0.1, "y", (0.0, 0.0, 0.0))  # the A-pose, in the scene's frame
     folder = out.with_suffix("")

@@ -64,17 +64,15 @@ class DressOptions:
     sew_time: float = key(0.6, doc="seams close in the first half, the body grows back in the second", unit="s",
                           gt=0)
     gravity_ramp: float = key(0.2, doc="gravity, off while sewing, ramps in over this time", unit="s", gt=0)
-    # Sewing steps are a path to the sewn shape (at most SewingOptions.iterations Newton
-    # iterations each, velocities dropped), so fewer, longer ones do: at 0.02 s instead of
-    # 0.01 s jumpsuit_04 sews in 256 iterations instead of 494, its seams as closed once
-    # at rest (0.86 mm against 0.93 mm; docs/dressing.md, stop 57).
-    dt: float = key(0.02, doc="time step while sewing", unit="s", gt=0)
-    steps_per_frame: int = key(2, doc="sewing steps per exported frame (25 frames a second)", ge=1)
+    dt: float = key(0.01, doc="time step while sewing", unit="s", gt=0)
+    steps_per_frame: int = key(4, doc="sewing steps per exported frame (25 frames a second)", ge=1)
     # Once sewn, what is wanted is where the garment comes to rest, not how it swings
-    # there: implicit Euler at 0.04 s (4x the sewing step of stop 56) reaches the same
-    # rest shape in about half the Newton iterations (skirt_04 settling 643 -> 320 at rest
-    # at 3.04 s against 2.96 s, 0.8 mm apart; jumpsuit_04 from its sewn state 687 -> 313
-    # to rest at 1.28 s against 1.36 s). A frame stays dt x steps_per_frame long.
+    # there: implicit Euler at 4x the sewing step reaches the same rest shape in about
+    # half the Newton iterations (skirt_04 settling 643 -> 320 at rest at 3.04 s against
+    # 2.96 s, 0.8 mm apart; jumpsuit_04 from its sewn state 687 -> 313 to rest at 1.28 s
+    # against 1.36 s). A frame stays dt x steps_per_frame long. Sewing steps of 0.02 s
+    # halve the sewing's iterations but leave shirt_mean's seams 3.2 mm open, jittering
+    # at 20 mm/s until max_time (docs/dressing.md, stop 57).
     settle_dt: float = key(0.04, doc="time step once sewn (gravity ramp and settling)", unit="s", gt=0)
     # Simulated time at most; the wall-clock timeout is what bounds the work. At 2.5 s
     # skirt_04's side seams were still sliding off the hands at 0.1-0.2 m/s.
