@@ -92,7 +92,7 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     pattern = tube_skirt(tmp_path / "skirt.json")
     body = cylinder_body(tmp_path / "body.obj")
     out = tmp_path / "out"
-    report = dress(pattern, body, out, {"max_time": 1.25})  # at rest at 1.12 s
+    report = dress(pattern, body, out, {"max_time": 1.5})  # at rest at 1.2-1.3 s
     assert report["status"] == "ok", report
     assert report["body_frame"] == "m, Y-up"
     assert report["seam_gap_max_mm"] < 1.0
