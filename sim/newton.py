@@ -198,9 +198,13 @@ def tolerance(opts: NewtonOptions, C: np.ndarray, origin: np.ndarray | None) -> 
     control points). As the cloth comes to rest the absolute tol is back in force."""
     if opts.relative_tol <= 0.0 or origin is None:
         return opts.tol
-    d = C - origin
-    speed = float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) / opts.dt if len(d) else 0.0
-    return max(opts.tol, opts.relative_tol * speed)
+    return max(opts.tol, opts.relative_tol * rms(C - origin) / opts.dt)
+
+
+def rms(X: np.ndarray) -> float:
+    """Root mean square of the rows' lengths of X (N, 3): a displacement's or velocity's
+    size over the control points."""
+    return float(np.sqrt(np.mean(np.sum(X * X, axis=1)))) if len(X) else 0.0
 
 
 # A drive iteration whose CCD fraction is below this counts as blocked (measured on

@@ -8,7 +8,7 @@ import time as _time
 import numpy as np
 
 from .model import Model
-from .newton import minimize
+from .newton import minimize, rms
 from .state import State
 from .stats import StepStats
 
@@ -75,7 +75,7 @@ def step(model: Model, state: State) -> StepStats:
     state.V = (C_new - state.C) / state.dt
     # RMS control-point speed of the step, before velocities are dropped or damped: how
     # far from rest the cloth is.
-    stats.extra["speed_rms"] = float(np.sqrt(np.mean(np.sum(state.V * state.V, axis=1))))
+    stats.extra["speed_rms"] = rms(state.V)
     if pulled_shut:
         state.V[:] = 0.0
         stats.extra["pulled_shut"] = 1.0

@@ -359,7 +359,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     report["dofs"] = int(sim.n_dofs)
     frames = scene.time.frames
     check = _Check()
-    calm = {"frames": 0, "settled": None, "timeout": False, "fell": None}
+    calm = {"frames": 0, "still": 0, "settled": None, "timeout": False, "fell": None}
     phases = report["phases"] = {name: {"steps": 0, "seconds": 0.0, "newton_iterations": 0} for name in PHASES}
     clock = [time.perf_counter()]
     report["placing_s"] = round(clock[0] - start, 2)  # reading, conforming, placing, building
@@ -399,7 +399,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
         closed = max(gaps.values(), default=0.0) < 1e-3
         calm.setdefault("trace", []).append(round(rms * 1e3, 1))
         calm["frames"] = calm["frames"] + 1 if rms < o.rest_speed and closed else 0
-        calm["still"] = calm.get("still", 0) + 1 if rms < o.rest_speed else 0  # seams or not
+        calm["still"] = calm["still"] + 1 if rms < o.rest_speed else 0  # seams or not
         if calm["frames"] >= o.rest_frames and calm["settled"] is None:
             calm["settled"] = t
 
@@ -428,7 +428,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     report["status"], report["error"] = verdict(
         check.non_finite or not np.all(np.isfinite(sim.state.C)), check.crossings,
         o.timeout if calm["timeout"] else None, gap, report["worst_seams_mm"], fell, moving,
-        still=calm.get("still", 0) >= o.rest_frames)
+        still=calm["still"] >= o.rest_frames)
 
 
 def _loose_opening(sim) -> str | None:
