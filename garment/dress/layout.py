@@ -22,6 +22,7 @@ from scipy.spatial import cKDTree
 
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, points_at, sample_grid
 from sim.errors import InputError
+from sim.intersect import crossing_pairs
 from sim.seams.routes import through
 
 from ..io.arms import find_arms, raised
@@ -79,22 +80,22 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
     surface = surface or _Surface.of(patches)
     x = surface.vertices(patches)
     part = surface.owner
-    faces = surface.faces
+    edges = ipctk.edges(surface.faces)
+    # Cloth edges through any triangle, then body edges through cloth triangles: the
+    # body's own edge-triangle pairs are never tested.
+    E, F = [edges], [surface.faces]
     if body_V is not None:
-        faces = np.concatenate([faces, body_F + len(x)]).astype(np.int32)
+        body_F = np.asarray(body_F) + len(x)
         part = np.concatenate([part, np.full(len(body_V), -1)])
         x = np.concatenate([x, body_V])
-    edges = ipctk.edges(faces)
-    broad = ipctk.LBVH()
-    broad.build(np.asfortranarray(x), np.asfortranarray(edges, dtype=np.int32), np.asfortranarray(faces), 0.0)
+        E, F = [edges, ipctk.edges(body_F)], [np.concatenate([surface.faces, body_F]), surface.faces]
     found: dict[tuple[int, int], list] = {}
-    for c in broad.detect_edge_face_candidates():
-        e, f = edges[c.edge_id], faces[c.face_id]
-        a, b = int(part[e[0]]), int(part[f[0]])
-        if (a == -1 and b == -1) or set(e.tolist()) & set(f.tolist()):
-            continue
-        if ipctk.is_edge_intersecting_triangle(x[e[0]], x[e[1]], x[f[0]], x[f[1]], x[f[2]]):
-            found.setdefault((min(a, b), max(a, b)), []).append(0.5 * (x[e[0]] + x[e[1]]))
+    for edges, faces in zip(E, F):
+        pairs = crossing_pairs(x, edges, faces)
+        e, f = edges[pairs[:, 0]], faces[pairs[:, 1]]
+        a, b = part[e[:, 0]], part[f[:, 0]]
+        for i, j, middle in zip(np.minimum(a, b), np.maximum(a, b), 0.5 * (x[e[:, 0]] + x[e[:, 1]])):
+            found.setdefault((int(i), int(j)), []).append(middle)
     return {k: np.array(v) for k, v in found.items()}
 
 

@@ -18,8 +18,9 @@ path clears the body the sample pulls straight again.
 
 from __future__ import annotations
 
-import ipctk
 import numpy as np
+
+from ..intersect import crossing_pairs
 
 MIN_GAP = 2e-3  # m: shorter paths are not checked (a closing seam lies on the cloth)
 DIRECTIONS = 12  # around each path
@@ -33,16 +34,8 @@ def through(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.nd
     if len(a) == 0 or len(F) == 0:
         return hit
     x = np.concatenate([np.stack([a, b], axis=1).reshape(-1, 3), V])
-    edges = np.arange(2 * len(a), dtype=np.int32).reshape(-1, 2)
-    faces = np.ascontiguousarray(F + 2 * len(a), dtype=np.int32)
-    broad = ipctk.LBVH()
-    broad.build(np.asfortranarray(x), np.asfortranarray(edges), faces, 0.0)
-    for c in broad.detect_edge_face_candidates():
-        k = c.edge_id
-        if hit[k]:
-            continue
-        f = faces[c.face_id]
-        hit[k] = ipctk.is_edge_intersecting_triangle(x[2 * k], x[2 * k + 1], x[f[0]], x[f[1]], x[f[2]])
+    edges = np.arange(2 * len(a)).reshape(-1, 2)
+    hit[crossing_pairs(x, edges, np.asarray(F) + 2 * len(a))[:, 0]] = True
     return hit
 
 

@@ -1,0 +1,45 @@
+"""Which segments pass through which triangles: every candidate pair of ipctk's broad
+phase tested at once (Moller-Trumbore), not one ipctk call per pair from Python (2.4 s
+a round for a 3.5K-DOF top against the 47.5K-triangle corpus body)."""
+
+from __future__ import annotations
+
+import ipctk
+import numpy as np
+
+# |det| below this (m^3 scale of the products involved): the segment runs parallel to the
+# triangle's plane, no crossing.
+PARALLEL = 1e-20
+
+
+def crossing_pairs(x: np.ndarray, edges: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(K, 2) (edge, face) index pairs whose segment x[edge] passes through the triangle
+    x[face]; pairs sharing a vertex are left out (neighbours touch by construction)."""
+    edges = np.ascontiguousarray(edges, np.int32).reshape(-1, 2)
+    faces = np.ascontiguousarray(faces, np.int32).reshape(-1, 3)
+    if not len(edges) or not len(faces):
+        return np.zeros((0, 2), np.int64)
+    broad = ipctk.LBVH()
+    broad.build(np.asfortranarray(x, dtype=float), np.asfortranarray(edges), np.asfortranarray(faces), 0.0)
+    pairs = np.array([(c.edge_id, c.face_id) for c in broad.detect_edge_face_candidates()], np.int64).reshape(-1, 2)
+    e, f = edges[pairs[:, 0]], faces[pairs[:, 1]]
+    pairs = pairs[~(e[:, :, None] == f[:, None, :]).any(axis=(1, 2))]
+    e, f = edges[pairs[:, 0]], faces[pairs[:, 1]]
+    return pairs[segments_cross_triangles(x[e[:, 0]], x[e[:, 1]], x[f[:, 0]], x[f[:, 1]], x[f[:, 2]])]
+
+
+def segments_cross_triangles(p, q, a, b, c) -> np.ndarray:
+    """(N,) bool: does segment p_k q_k cross triangle a_k b_k c_k (all (N, 3)), ends and
+    borders included?"""
+    d = q - p
+    e1, e2 = b - a, c - a
+    h = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, h)
+    ok = np.abs(det) > PARALLEL
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = p - a
+    u = inv * np.einsum("ij,ij->i", s, h)
+    r = np.cross(s, e1)
+    v = inv * np.einsum("ij,ij->i", d, r)
+    t = inv * np.einsum("ij,ij->i", e2, r)
+    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)
