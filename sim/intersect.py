@@ -1,6 +1,9 @@
 """Which segments pass through which triangles: every candidate pair of ipctk's broad
 phase tested at once (Moller-Trumbore), not one ipctk call per pair from Python (2.4 s
-a round for a 3.5K-DOF top against the 47.5K-triangle corpus body)."""
+a round for a 3.5K-DOF top against the 47.5K-triangle corpus body).
+
+garment/verify.py keeps its own segment test on purpose: the independent crossing check
+shares no code with the simulator it judges."""
 
 from __future__ import annotations
 
