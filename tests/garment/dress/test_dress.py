@@ -92,7 +92,7 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     pattern = tube_skirt(tmp_path / "skirt.json")
     body = cylinder_body(tmp_path / "body.obj")
     out = tmp_path / "out"
-    report = dress(pattern, body, out, {"max_time": 1.5})  # at rest at 1.2-1.3 s
+    report = dress(pattern, body, out, {"max_time": 2.5})  # at rest at 1.96 s (settle_dt 0.04: 1.2 s)
     assert report["status"] == "ok", report
     assert report["body_frame"] == "m, Y-up"
     assert report["seam_gap_max_mm"] < 1.0
@@ -100,10 +100,10 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     assert json.loads((out / "report.json").read_text())["status"] == "ok"
     # Where the time went: every step in one phase (0.6 s of sewing: 0.32 s at dt = 0.01 s,
     # to the first frame end once the body grows, 0.28 s at grow_dt = 0.02 s; then the
-    # 0.2 s ramp and the settling at settle_dt = 0.04 s).
+    # ramp, 0.6-0.8 s, and the settling at settle_dt = 0.08 s).
     phases = report["phases"]
-    assert [phases[k]["steps"] for k in ("sewing", "gravity_ramp")] == [32 + 14, 5]
-    assert sum(p["steps"] for p in phases.values()) == 46 + round((report["simulated_s"] - 0.6) / 0.04)
+    assert [phases[k]["steps"] for k in ("sewing", "gravity_ramp")] == [32 + 14, 2]
+    assert sum(p["steps"] for p in phases.values()) == 46 + round((report["simulated_s"] - 0.6) / 0.08)
     assert all(p["newton_iterations"] >= p["steps"] for p in phases.values())
     assert 0 < report["placing_s"] + sum(p["seconds"] for p in phases.values()) <= report["seconds"]
     assert (out / "run.rrd").stat().st_size > 0
