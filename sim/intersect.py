@@ -28,8 +28,8 @@ def crossing_pairs(x: np.ndarray, edges: np.ndarray, faces: np.ndarray) -> np.nd
     broad.build(np.asfortranarray(x, dtype=float), np.asfortranarray(edges), np.asfortranarray(faces), 0.0)
     pairs = np.array([(c.edge_id, c.face_id) for c in broad.detect_edge_face_candidates()], np.int64).reshape(-1, 2)
     e, f = edges[pairs[:, 0]], faces[pairs[:, 1]]
-    pairs = pairs[~(e[:, :, None] == f[:, None, :]).any(axis=(1, 2))]
-    e, f = edges[pairs[:, 0]], faces[pairs[:, 1]]
+    apart = ~(e[:, :, None] == f[:, None, :]).any(axis=(1, 2))
+    pairs, e, f = pairs[apart], e[apart], f[apart]
     return pairs[segments_cross_triangles(x[e[:, 0]], x[e[:, 1]], x[f[:, 0]], x[f[:, 1]], x[f[:, 2]])]
 
 

@@ -418,7 +418,7 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     sinks = [RerunSink(outdir / "run.rrd", recording_name=scene.name), check, _Frames(on_frame_written)]
     try:
         drive(sim, frames, o.steps_per_frame, sinks, should_stop=at_rest, floor=o.dt / 16, on_step=on_step,
-              frame_time=o.dt * o.steps_per_frame)
+              frame_time=frame_time)
     except SimulationError as e:
         gaps = sim.seam_gaps()
         report["seam_gap_max_mm"] = round(max(gaps.values(), default=0.0) * 1e3, 3)

@@ -90,9 +90,9 @@ def crossings(patches, body_V: np.ndarray | None = None, body_F: np.ndarray | No
         x = np.concatenate([x, body_V])
         E, F = [edges, ipctk.edges(body_F)], [np.concatenate([surface.faces, body_F]), surface.faces]
     found: dict[tuple[int, int], list] = {}
-    for edges, faces in zip(E, F):
-        pairs = crossing_pairs(x, edges, faces)
-        e, f = edges[pairs[:, 0]], faces[pairs[:, 1]]
+    for segments, triangles in zip(E, F):
+        pairs = crossing_pairs(x, segments, triangles)
+        e, f = segments[pairs[:, 0]], triangles[pairs[:, 1]]
         a, b = part[e[:, 0]], part[f[:, 0]]
         for i, j, middle in zip(np.minimum(a, b), np.maximum(a, b), 0.5 * (x[e[:, 0]] + x[e[:, 1]])):
             found.setdefault((int(i), int(j)), []).append(middle)
