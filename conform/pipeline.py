@@ -44,7 +44,8 @@ from .mips import refine as mips_refine
 from .pleats import fold_panels, fold_span, pleat_faces
 from .quality import folded, lift_strain, polyline_distance, report
 from .seams import map_seam, seam_hints, short_seams
-from .split import SPLIT_IMBALANCE, darts_of, imbalance, necks_of, notches_of, split_panel, split_seams
+from .split import (PINCH, SPLIT_IMBALANCE, darts_of, imbalance, necks_of, notches_of, split_panel, split_seams,
+                    trims_of)
 
 
 @dataclass
@@ -435,7 +436,8 @@ def rescue_splits(panel: Panel, outline: Outline, seams: list[PanelSeam], option
         if split is not None:
             yield split
     for neck in necks_of(outline, NECK_LOBE * options.knot_span):
-        split = split_panel(panel, outline, [neck])
+        # A pinch is cut off on both sides (split.trims_of), a neck is cut across.
+        split = split_panel(panel, outline, trims_of(outline, neck) if neck.depth < PINCH else [neck])
         if split is not None:
             yield split
 

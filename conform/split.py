@@ -48,7 +48,7 @@ class Dart:
     tip: np.ndarray
     axis: np.ndarray
     depth: float  # mouth midpoint to tip, m (a neck: its width)
-    kind: str = "dart"  # "dart", "notch" or "neck"
+    kind: str = "dart"  # "dart", "notch", "neck" or "trim" (one side of a pinch's sliver)
 
 
 @dataclass
@@ -188,12 +188,51 @@ def necks_of(outline: Outline, min_arc: float, count: int = 3) -> list[Dart]:
         i, j = np.unravel_index(flat, score.shape)
         if not score[i, j] < NECK_RATIO or len(out) == count:
             break
-        a, b = Q[i], Q[j]
+        # The narrowest chord among the full outline's points near the subsampled pair.
+        near = np.arange(-stride, stride + 1)
+        wa, wb = (idx[i] + near) % B, (idx[j] + near) % B
+        d = np.linalg.norm(P[wa][:, None] - P[wb][None], axis=-1)
+        ka, kb = np.unravel_index(np.argmin(d), d.shape)
+        a, b = P[wa[ka]], P[wb[kb]]
+        width = float(d[ka, kb])
+        if width == 0.0:
+            continue
         if any(min(np.linalg.norm(a - d.tip), np.linalg.norm(b - d.tip)) < 0.5 * min_arc for d in out):
             continue  # the same neck again
         if not _inside(P, 0.5 * (a + b)) or _crosses_outline(P, a, b):
             continue
-        out.append(Dart(f"neck{len(out)}", a.copy(), (b - a) / chord[i, j], float(chord[i, j]), "neck"))
+        out.append(Dart(f"neck{len(out)}", a.copy(), (b - a) / width, width, "neck"))
+    return out
+
+
+PINCH = 3e-3  # m: a neck narrower than this is no cloth the contact mesh can hold
+TRIM_WIDTH = 10e-3  # m: a pinch's sliver is cut off where its lobes are this wide
+
+
+def trims_of(outline: Outline, neck: Dart, width: float = TRIM_WIDTH) -> list[Dart]:
+    """Two cuts, one into each lobe of a pinched neck (two curves of the outline that all
+    but meet: upper_garment_06's armhole and back neckline 0.1 mm apart), where the lobe
+    is `width` wide. Cut at the pinch itself, a lobe keeps a side of 0.1 mm against its
+    others and its patch folds; the sliver between the two cuts (pinched in the middle,
+    at most `width` wide) is dropped and its seams left open. [] when a lobe never gets
+    that wide."""
+    P = outline.points
+    B = len(outline)
+    ia = int(np.argmin(np.linalg.norm(P - neck.tip, axis=1)))
+    ib = int(np.argmin(np.linalg.norm(P - (neck.tip + neck.depth * neck.axis), axis=1)))
+    out = []
+    for step in (1, -1):  # the lobe from ia forward to ib, then from ib forward to ia
+        n = ((ib - ia) * step) % B  # points of the lobe's loop between the pinch's ends
+        side_b = P[(ib - step * np.arange(1, n // 2 + 1)) % B]
+        for k in range(1, n // 2 + 1):
+            p = P[(ia + step * k) % B]
+            d = np.linalg.norm(side_b - p, axis=1)
+            j = int(np.argmin(d))
+            if d[j] >= width:
+                out.append(Dart(f"trim{len(out)}", p.copy(), (side_b[j] - p) / d[j], float(d[j]), "trim"))
+                break
+        else:
+            return []
     return out
 
 
@@ -330,8 +369,8 @@ def split_panel(panel: Panel, outline: Outline, darts: list[Dart]) -> Split | No
     ids = np.asarray(panel.vertex_ids)
     # A dart's or notch's tip lies in the middle of a piece's side (leg + cut, nearly
     # straight) and is never a corner; both ends of a neck are.
-    tips = np.array([c.p0 for c in cuts if c.kind != "neck"]).reshape(-1, 2)
-    neck_starts = {c.start for c in cuts if c.kind == "neck"}
+    tips = np.array([c.p0 for c in cuts if c.kind not in ("neck", "trim")]).reshape(-1, 2)
+    neck_starts = {c.start for c in cuts if c.kind in ("neck", "trim")}
 
     def loop_next(a):
         return (a + 1) % Bp
@@ -377,7 +416,8 @@ def split_panel(panel: Panel, outline: Outline, darts: list[Dart]) -> Split | No
                     transform=panel.transform, vertex_ids=np.asarray(vid), corner_hints=np.asarray(hints, np.int64),
                     segment_edges=np.asarray(seg_e) if seg_edges is not None else None,
                     segment_bulge=np.asarray(blg) if bulge is not None else None, area=area)
-        pieces.append(Piece(sub, panel.name, k, np.asarray(node_of), tips, sorted(on_cuts)))
+        if sum(cuts[c].kind == "trim" for c in on_cuts) < 2:  # between two trims: a pinch's sliver, dropped
+            pieces.append(Piece(sub, panel.name, k, np.asarray(node_of), tips, sorted(on_cuts)))
 
     # The cut seams: sampled from the tip to the outline, the same points on both pieces.
     cut_seams = []

@@ -208,16 +208,13 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     return layout
 
 
-PINCH = 3e-3  # m: a panel narrower than this somewhere is no cloth the contact mesh can hold
-
-
 def _fold_reason(root: str, panels, options) -> str:
     """Why a patch of pattern panel `root` still folds after every cut: the panel's outline
     pinched to (almost) nothing (a strap whose two sides meet), or in general a net no cut
     could untangle."""
     from conform.boundary import extract_outline
     from conform.pipeline import NECK_LOBE
-    from conform.split import necks_of
+    from conform.split import PINCH, necks_of
 
     by_name = {p.name: p for p in panels}
     necks = necks_of(extract_outline(by_name[root]), NECK_LOBE * options.knot_span) if root in by_name else []

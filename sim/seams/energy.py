@@ -17,10 +17,13 @@ the seam's holding force per unit length; augmented Lagrangian, Nocedal & Wright
 E += sum_s w_s lambda_s . g_s with g_s = S_a - S_b, and after each step
 lambda_s += k_s g_s. The gradient gains the constant D^T (w lambda), the Hessian nothing,
 and the gap shrinks by K_cloth / (K_cloth + k) per step towards zero rather than to
-force / k. A multiplier grows only while its gap still shrinks (by 10 % per step):
-where contact blocks a seam (a pleat's folded layers between its edges) pushing harder
-would only press the layers together, without bound (dress_knife's waist tucks: Newton
-at its cap every step, contacts at 36 nm). And one update adds at most `max_step` to a
+force / k. A multiplier grows while its gap still shrinks (by 10 % per step), and once
+it stops shrinking above LEVEL_GAP, LEVEL_PUSHES more times, no more: where contact
+blocks a seam (a pleat's folded layers between its edges) pushing without bound would
+only press the layers together (dress_knife's waist tucks: Newton at its cap every step,
+contacts at 36 nm), while a gap that merely levelled off above 1 mm (jumpsuit_04's
+stitch48 at 1.09 mm) needs a few more pushes to close, and pushing every step kept
+jumpsuit_02 moving until 3.3 s instead of 1.2. And one update adds at most `max_step` to a
 multiplier (the simulator: twice what the cloth carries at 100 % strain, 2 E h): the
 first update (lambda = k g everywhere at once) would otherwise double the pull on every
 seam still held open by contact or by a patch too coarse to follow it (dress_knife at the
@@ -41,6 +44,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..energies.quadratic import QuadraticEnergy
+
+LEVEL_GAP = 0.5e-3  # m: a gap that stopped shrinking above this still gets pushed ...
+LEVEL_PUSHES = 3  # ... this many times (at most this x max_step more force), no more
 
 
 @dataclass
@@ -84,6 +90,7 @@ class SeamEnergy(QuadraticEnergy):
         self.scale = 1.0
         self.multipliers = np.zeros((D.shape[0], 3))  # lambda, N/m per sample
         self.last_gaps = np.full(D.shape[0], np.inf)  # m, at the last multiplier update
+        self.level_pushes = np.zeros(D.shape[0], np.int64)  # updates of a gap that stopped shrinking
 
     def value(self, C):
         return (super().value(C) + float(np.sum(self._weighted_multipliers() * (self.D @ C)))
@@ -150,11 +157,15 @@ class SeamEnergy(QuadraticEnergy):
 
     def update_multipliers(self, C: np.ndarray) -> None:
         """lambda += k g at the state C that ended a step, where the gap shrank by 10 %
-        since the last update (full stiffness only: during the ramp the gaps are the
-        sewing's, not the seams' error), by at most max_step."""
+        since the last update or levelled off above LEVEL_GAP (LEVEL_PUSHES times per
+        sample at most; full stiffness only: during the ramp the gaps are the sewing's,
+        not the seams' error), by at most max_step."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
-        closing = (gaps < 0.9 * self.last_gaps) & self.active & ~self.routed
+        shrinking = gaps < 0.9 * self.last_gaps
+        level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP) & (self.level_pushes < LEVEL_PUSHES)
+        closing = (shrinking | level) & self.active & ~self.routed
+        self.level_pushes[closing & level] += 1
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]

@@ -101,3 +101,28 @@ def test_a_piece_whose_seamed_mesh_turns_over_counts_as_folded():
     wide = PINCH.copy()
     wide[:, :, 0] += np.linspace(0.0, 4e-3, n)[:, None] * np.exp(-((wide[:, :, 1] - 0.082) / 0.04) ** 2)
     assert not folded(SimpleNamespace(shape=(n, m), rest=wide))
+
+
+# A torso and a yoke meeting in a 0.1 mm waist at y = 40 cm (two V's tip to tip), as
+# upper_garment_06's armhole and back neckline all but meet.
+PINCHED = [[0, 0], [40, 0], [40, 30], [20.005, 40], [40, 55], [40, 65], [0, 65], [0, 55], [19.995, 40], [0, 30]]
+
+
+def test_a_pinched_panel_loses_the_sliver_at_its_pinch_and_both_lobes_conform(tmp_path):
+    from conform.split import TRIM_WIDTH, trims_of
+
+    panels, seams = pattern(tmp_path / "p.json", PINCHED)
+    outline = extract_outline(panels[0])
+    neck = necks_of(outline, 0.16)[0]
+    assert neck.depth < 2e-3 and abs(neck.tip[1] - 0.40) < 0.01
+    trims = trims_of(outline, neck)
+    assert len(trims) == 2
+    for t in trims:  # one cut into each lobe, where it is TRIM_WIDTH wide
+        assert TRIM_WIDTH <= t.depth < 1.5 * TRIM_WIDTH
+    assert sorted(np.sign(t.tip[1] - 0.40) for t in trims) == [-1, 1]
+    ps, folds = conformed(panels, seams, "auto")
+    assert not ps.failures and not folds
+    assert len(ps.patches) == 2  # the sliver between the cuts is dropped ...
+    assert not [s for s in ps.seams if ".cut" in s.name]  # ... and nothing sews across it
+    # The sliver is two thin triangles (~15 cm^2 of 2,200): the pieces keep 99 %.
+    assert -1.5 < ps.splits["front"]["area_error_gauss2_pct"] < 0

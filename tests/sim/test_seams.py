@@ -211,7 +211,9 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
 
 
-def test_multipliers_grow_only_while_the_gap_shrinks_by_at_most_twice_what_the_cloth_carries():
+def test_multipliers_grow_while_the_gap_shrinks_then_a_few_times_more_by_at_most_twice_what_the_cloth_carries():
+    from sim.seams.energy import LEVEL_PUSHES
+
     seam = two_panels(0.02).model.seam
     C = two_panels(0.02).C
     cotton = PRESETS["cotton"]
@@ -228,13 +230,18 @@ def test_multipliers_grow_only_while_the_gap_shrinks_by_at_most_twice_what_the_c
     seam.max_step = np.full_like(seam.max_step, np.inf)
     seam.update_multipliers(C)  # first update: 2 cm gaps, k g = 1e6 x 0.02 = 2e4 N/m
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4, rtol=1e-9)
+    for n in range(1, LEVEL_PUSHES + 1):  # the same gap again: levelled off, pushed a few times ...
+        seam.update_multipliers(C)
+        np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 * (1 + n), rtol=1e-9)
     before = seam.multipliers.copy()
-    seam.update_multipliers(C)  # the same gap again: blocked, no more pushing
+    seam.update_multipliers(C)  # ... then blocked: no more pushing
     assert np.array_equal(seam.multipliers, before)
     closer = C.copy()
     closer[: C.shape[0] // 2, 0] += 0.005  # panel a moved 5 mm towards b: the gap shrank by 25 %
     seam.update_multipliers(closer)
-    np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 + 1.5e4, rtol=1e-9)
+    np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 * (1 + LEVEL_PUSHES) + 1.5e4, rtol=1e-9)
+    seam.update_multipliers(C)  # it opened again: not pushed
+    np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 * (1 + LEVEL_PUSHES) + 1.5e4, rtol=1e-9)
 
 
 def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
