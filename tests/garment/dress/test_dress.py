@@ -121,6 +121,30 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     assert connected_components(adjacency, directed=False)[0] == 1
 
 
+def test_a_run_stopped_by_the_simulator_reports_how_far_it_got(tmp_path, monkeypatch):
+    import sim.driver
+    from sim.errors import SimulationError
+
+    drive = sim.driver.drive
+
+    def three_frames_then_stuck(sim_, frames, *args, **kwargs):
+        drive(sim_, 3, *args, **kwargs)
+        raise SimulationError("Newton hit its iteration cap")
+
+    monkeypatch.setattr(sim.driver, "drive", three_frames_then_stuck)
+    out = tmp_path / "out"
+    report = dress(tube_skirt(tmp_path / "skirt.json"), cylinder_body(tmp_path / "body.obj"), out)
+    assert report["status"] == "sewing" and "iteration cap" in report["error"]
+    assert report["simulated_s"] == pytest.approx(0.12)  # 3 frames of 4 steps of 0.01 s
+    # The seams still closing (the widest first, as at the end of a run) and the
+    # independent check of the 4 frames written (the start and 3 more).
+    gaps = list(report["worst_seams_mm"].values())
+    assert gaps == sorted(gaps, reverse=True) and gaps[0] == pytest.approx(report["seam_gap_max_mm"], abs=0.01)
+    assert gaps[0] > 1.0
+    assert report["crossings"] == 0
+    assert json.loads((out / "report.json").read_text())["worst_seams_mm"] == report["worst_seams_mm"]
+
+
 def test_dress_command_reports_bad_input(tmp_path, capsys):
     body = tmp_path / "box.obj"
     trimesh.creation.box((5, 5, 5)).export(body)
