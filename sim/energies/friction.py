@@ -14,7 +14,7 @@ from __future__ import annotations
 import ipctk
 import numpy as np
 
-from .barrier import BarrierEnergy
+from .barrier import BarrierEnergy, in_order
 from .contact import ContactEnergy
 
 
@@ -45,7 +45,8 @@ class FrictionEnergy(ContactEnergy):
         self.x_n = self.contact.vertices(C)
         self.barrier._update(C)
         normal = ipctk.BarrierPotential(self.barrier.barrier, self.barrier.dhat, self.barrier.kappa)
-        self.tangential.build(self.contact.mesh, self.x_n, self.barrier.collisions, normal, self.mu)
+        with in_order():
+            self.tangential.build(self.contact.mesh, self.x_n, self.barrier.collisions, normal, self.mu)
 
     @property
     def active(self) -> bool:
@@ -57,15 +58,18 @@ class FrictionEnergy(ContactEnergy):
     def value(self, C):
         if not self.active:
             return 0.0
-        return self.dt * float(self.potential(self.tangential, self.contact.mesh, self._v(C)))
+        with in_order():
+            return self.dt * float(self.potential(self.tangential, self.contact.mesh, self._v(C)))
 
     def add_gradient(self, C, out):
         if not self.active:
             return
-        g = self.contact.cloth_part(self.potential.gradient(self.tangential, self.contact.mesh, self._v(C)))
+        with in_order():
+            g = self.contact.cloth_part(self.potential.gradient(self.tangential, self.contact.mesh, self._v(C)))
         out += (self.contact.W3.T @ g).reshape(-1, 3)
 
     def _ipctk_hessian(self, C, method):
         if not self.active:
             return None
-        return self.potential.hessian(self.tangential, self.contact.mesh, self._v(C), method) / self.dt
+        with in_order():
+            return self.potential.hessian(self.tangential, self.contact.mesh, self._v(C), method) / self.dt
