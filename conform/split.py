@@ -211,9 +211,9 @@ TRIM_WIDTH = 10e-3  # m: a pinch's sliver is cut off where its lobes are this wi
 
 def trims_of(outline: Outline, neck: Dart, width: float = TRIM_WIDTH) -> list[Dart]:
     """Two cuts, one into each lobe of a pinched neck (two curves of the outline that all
-    but meet: upper_garment_06's armhole and back neckline 0.1 mm apart), where the lobe
-    is `width` wide. Cut at the pinch itself, a lobe keeps a side of 0.1 mm against its
-    others and its patch folds; the sliver between the two cuts (pinched in the middle,
+    but meet: upper_garment_06's armhole and back neckline, 1 mm apart on its sampled
+    outline), where the lobe is `width` wide. Cut at the pinch itself, a lobe keeps a side
+    of 1 mm against a 79 mm one and its patch folds; the sliver between the two cuts (pinched in the middle,
     at most `width` wide) is dropped and its seams left open. [] when a lobe never gets
     that wide."""
     P = outline.points
