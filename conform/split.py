@@ -213,9 +213,9 @@ def trims_of(outline: Outline, neck: Dart, width: float = TRIM_WIDTH) -> list[Da
     """Two cuts, one into each lobe of a pinched neck (two curves of the outline that all
     but meet: upper_garment_06's armhole and back neckline, 1 mm apart on its sampled
     outline), where the lobe is `width` wide. Cut at the pinch itself, a lobe keeps a side
-    of 1 mm against a 79 mm one and its patch folds; the sliver between the two cuts (pinched in the middle,
-    at most `width` wide) is dropped and its seams left open. [] when a lobe never gets
-    that wide."""
+    of 1 mm against a 79 mm one and its patch folds; the sliver between the two cuts
+    (pinched in the middle, at most `width` wide) is dropped and its seams left open.
+    [] when a lobe never gets that wide."""
     P = outline.points
     B = len(outline)
     ia = int(np.argmin(np.linalg.norm(P - neck.tip, axis=1)))

@@ -208,9 +208,16 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     return layout
 
 
-def _worst_seams(gaps: dict[str, float], count: int = 5) -> dict[str, float]:
-    """The `count` widest seam gaps, mm, widest first."""
-    return {k: round(v * 1e3, 2) for k, v in sorted(gaps.items(), key=lambda kv: -kv[1])[:count]}
+def _how_far(report: dict, sim, check) -> dict[str, float]:
+    """Record where the run got to, finished or stopped: the widest seam gap and the five
+    widest seams (mm), the crossings of the frames written and the simulated time.
+    Returns every seam's gap, m."""
+    gaps = sim.seam_gaps()
+    report["seam_gap_max_mm"] = round(max(gaps.values(), default=0.0) * 1e3, 3)
+    report["worst_seams_mm"] = {k: round(v * 1e3, 2) for k, v in sorted(gaps.items(), key=lambda kv: -kv[1])[:5]}
+    report["crossings"] = int(check.crossings)
+    report["simulated_s"] = round(sim.state.t, 3)
+    return gaps
 
 
 def _fold_reason(root: str, panels, options) -> str:
@@ -424,23 +431,15 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
     except SimulationError as e:
         # What the run got to: the open seams name the panels, the crossings count the
         # frames written (upper_garment_06 stopped at 0.84 s with its cuffs 18-27 mm open).
-        gaps = sim.seam_gaps()
-        report["seam_gap_max_mm"] = round(max(gaps.values(), default=0.0) * 1e3, 3)
-        report["worst_seams_mm"] = _worst_seams(gaps)
-        report["crossings"] = int(check.crossings)
-        report["simulated_s"] = round(sim.state.t, 3)
+        _how_far(report, sim, check)
         bad = not np.all(np.isfinite(sim.state.C))
         raise DressFailure("nan" if bad else "sewing" if sim.state.t < o.sew_time else "intersection", str(e)) from None
-    gaps = sim.seam_gaps()
+    gaps = _how_far(report, sim, check)
     gap = max(gaps.values(), default=0.0)
-    report["seam_gap_max_mm"] = round(gap * 1e3, 3)
-    report["crossings"] = int(check.crossings)
     report["worst_frame_crossings"] = {"garment_body": check.worst[0], "garment_garment": check.worst[1]}
     report["settle_time_s"] = None if calm["settled"] is None else round(calm["settled"], 3)
-    report["simulated_s"] = round(sim.state.t, 3)
     trace = calm.get("trace", [])
     report["speed_rms_mm_s"] = trace  # per exported frame after sewing
-    report["worst_seams_mm"] = _worst_seams(gaps)
     _write_garment(sim, outdir / "garment.obj", frame)
     moving = None if calm["settled"] is not None or calm["timeout"] else (sim.state.t, trace[-1] if trace else None)
     fell = None if calm["fell"] is None else (*calm["fell"], _loose_opening(sim))

@@ -201,11 +201,15 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     sim = _eased(True)
     for _ in range(3):
         sim.step()
-    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 3, "eased"))
+    sim.model.seam.level_pushes[:2] = 1  # and how often a levelled-off gap was pushed
+    sim.step()
+    ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 4, "eased"))
     resumed = _eased(True)
     resumed.state = ck.state
     np.testing.assert_array_equal(resumed.model.seam.multipliers, sim.model.seam.multipliers)
     assert np.abs(sim.model.seam.multipliers).max() > 0.0
+    np.testing.assert_array_equal(resumed.model.seam.level_pushes, sim.model.seam.level_pushes)
+    assert sim.model.seam.level_pushes.max() > 0
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
