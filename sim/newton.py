@@ -60,7 +60,7 @@ class NewtonOptions:
         """`given` (or the defaults) with a scene's [time] Newton settings."""
         opts = given or cls()
         opts.tol, opts.max_iterations = time_spec.newton_tol, time_spec.max_newton_iterations
-        opts.extrapolate = time_spec.newton_extrapolate
+        opts.extrapolate = time_spec.newton_extrapolate or 0  # None: a TimeSpec not read from a scene
         opts.relative_tol = time_spec.newton_relative_tol
         return opts
 
@@ -224,6 +224,22 @@ def _advance_each(ip, drive, C, stats):
         drive.advance_each(CLEARANCE_SHARE * limit)
         stats.extra["blocked_drives"] = stats.extra.get("blocked_drives", 0) + 1
     stats.t_ccd += time.perf_counter() - t0
+
+
+# Doublings tried by default (NewtonOptions.extrapolate, a scene's newton_extrapolate).
+# Where the clamped Hessian sees no curvature along a buckling mode, full steps crawl down
+# it: the frictionless sheet on a sphere, 75^2, 45 steps, 28.8 -> 21.1 Newton iterations
+# a step (10.5 -> 9.0 s); the seeded hanging sheet, 53 steps, 9.57 -> 8.68 (2.68 -> 2.29 s).
+EXTRAPOLATE = 4
+# ... but not inside a narrow friction band, where the doublings cost more than they save
+# (the dress on the dancer with eps_v 1e-3: 456 -> 520 iterations; docs/findings.md).
+EXTRAPOLATE_MIN_EPS_V = 1e-2  # m/s
+
+
+def default_doublings(mu: float, eps_v: float) -> int:
+    """Doublings to try when a scene does not say: EXTRAPOLATE unless friction (mu > 0)
+    has a band narrower than EXTRAPOLATE_MIN_EPS_V."""
+    return 0 if mu > 0.0 and eps_v < EXTRAPOLATE_MIN_EPS_V else EXTRAPOLATE
 
 
 # Actual over predicted decrease of a full step above which longer steps are tried. The

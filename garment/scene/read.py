@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.materials import MIN_CONTROL_POINTS, PRESETS, Material
+from sim.newton import default_doublings
 from garment.scene.schema import schema
 from garment.scene.specs import (
     MOVING_KINDS,
@@ -81,6 +82,10 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
         if o.blend is not None and o.blend > time_spec.preroll:
             raise SceneError(source, f"obstacle[{i}].blend", f"{o.blend:g} s is longer than the pre-roll "
                                                             f"([time] preroll = {time_spec.preroll:g} s)")
+    contact = _read_contact(root, bool(obstacles))
+    if time_spec.newton_extrapolate is None:
+        friction = contact.mu if contact.enabled else 0.0
+        time_spec.newton_extrapolate = default_doublings(friction, contact.eps_v)
     return Scene(
         name=info.get("name") or (path.stem if path else "scene"),
         path=path,
@@ -91,7 +96,7 @@ def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
         output=root.table("output").build(),
         description=info.get("description", ""),
         obstacles=obstacles,
-        contact=_read_contact(root, bool(obstacles)),
+        contact=contact,
         garments=garments,
         sewing=root.table("sewing").build(),
     )

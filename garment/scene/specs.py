@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.newton import EXTRAPOLATE, EXTRAPOLATE_MIN_EPS_V
 from sim.materials import MEMBRANE_MODELS, MIN_CONTROL_POINTS, PRESETS, QUADRATURES, Material
 from sim.patches import Patch
 from garment.scene.schema import Key, declare, key
@@ -143,9 +144,9 @@ class TimeSpec:
         0.0, ge=0, doc="Newton may stop at this fraction of the step's RMS control-point speed instead "
         "(0: newton_tol only; garment dress: 0.1)")
     max_newton_iterations: int = key(100, doc="Newton iterations per step at most", ge=1)
-    newton_extrapolate: int = key(
-        0, ge=0, doc="doublings tried after a full step that beats the Newton model (sliding friction; sim/newton.py)"
-    )
+    newton_extrapolate: int | None = key(
+        None, ge=0, doc="doublings tried after a full step that beats the Newton model (buckling, sliding "
+        "friction; sim/newton.py)", default_text=f"{EXTRAPOLATE}; 0 with friction whose eps_v < {EXTRAPOLATE_MIN_EPS_V:g}")
     mode: str = key("dynamic", doc="time integration", choices=TIME_MODES)
     preroll: float = key(0.0, doc="animated bodies hold their first pose this long first", unit="s", ge=0)
     sewing: str = key("dynamic", doc='"quasistatic": velocities dropped after each sewing step of the pre-roll',

@@ -13,6 +13,7 @@ import pytest
 import garment.scene as scene_module
 from garment.build import build_simulator
 from sim.materials import PRESETS, Material
+from sim.newton import EXTRAPOLATE
 from garment.scene import (
     ClothSpec,
     ContactSpec,
@@ -126,7 +127,7 @@ def test_full_scene(tmp_path):
         PinSpec(cloth="sheet", corners=("u0v0", "u1v0"), velocity=(0.5, 0.0, 0.0), duration=0.1)
     ]
     assert scene.load == LoadSpec(gravity=(0.0, 0.0, -9.81), pressure=0.0)
-    assert scene.time == TimeSpec()
+    assert scene.time == TimeSpec(newton_extrapolate=EXTRAPOLATE)  # no friction: the doublings default
     assert scene.output == OutputSpec(
         rrd=Path("out/hanging.rrd"),
         mesh_dir=Path("out/hanging_frames"),
@@ -300,7 +301,7 @@ def test_defaults(tmp_path):
     assert scene.cloths[0].material == PRESETS["cotton"]
     assert scene.pins == []
     assert scene.load == LoadSpec()
-    assert scene.time == TimeSpec()
+    assert scene.time == TimeSpec(newton_extrapolate=EXTRAPOLATE)
     assert scene.output == OutputSpec()
 
 
@@ -616,7 +617,19 @@ def test_newton_extrapolate_reaches_the_solver(tmp_path):
     opts = build_simulator(scene).model.newton
     assert (opts.extrapolate, opts.tol, opts.relative_tol) == (3, 0.02, 0.1)
     plain = build_simulator(load_scene(write(tmp_path, CLOTH, "plain.toml"))).model.newton
-    assert (plain.extrapolate, plain.relative_tol) == (0, 0.0)
+    assert (plain.extrapolate, plain.relative_tol) == (EXTRAPOLATE, 0.0)
+
+
+def test_doublings_default_off_inside_a_narrow_friction_band(tmp_path):
+    # Doublings pay on buckling and with a 1 cm/s band; with a 1 mm/s band they cost more.
+    def doublings(contact):
+        return load_scene(write(tmp_path, CLOTH + contact, "c.toml")).time.newton_extrapolate
+
+    assert doublings("") == EXTRAPOLATE
+    assert doublings("[contact]\nmu = 0.2\neps_v = 1e-3\n") == 0
+    assert doublings("[contact]\nmu = 0.2\neps_v = 1e-2\n") == EXTRAPOLATE
+    assert doublings("[contact]\nmu = 0.0\neps_v = 1e-3\n") == EXTRAPOLATE
+    assert doublings("[contact]\nmu = 0.2\neps_v = 1e-3\n[time]\nnewton_extrapolate = 2\n") == 2
 
 
 def test_material_default_is_cotton():
