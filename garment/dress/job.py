@@ -421,11 +421,6 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
         calm.setdefault("trace", []).append(round(rms * 1e3, 1))
         calm["frames"] = calm["frames"] + 1 if rms < o.rest_speed and closed else 0
         calm["still"] = calm["still"] + 1 if rms < o.rest_speed else 0  # seams or not
-        if calm["still"] >= o.rest_frames and not closed and sim.model.seam.renew_pushes():
-            # At rest with a seam open, nothing but its multipliers can close it: a gap
-            # that levelled off gets pushed again (jumpsuit_04's dart mouth sat at 1.0 mm
-            # from t = 2.6 s to the 5 s limit).
-            calm["still"] = 0
         if calm["frames"] >= o.rest_frames and calm["settled"] is None:
             calm["settled"] = t
 

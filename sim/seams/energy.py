@@ -172,14 +172,6 @@ class SeamEnergy(QuadraticEnergy):
         self.multipliers[closing] += step
         self.last_gaps = gaps
 
-    def renew_pushes(self) -> int:
-        """LEVEL_PUSHES more pushes for every gap still above LEVEL_GAP (for a garment that
-        came to rest with a seam open: nothing else is left to close it). Returns how
-        many samples got them."""
-        renewed = self.active & ~self.routed & (self.last_gaps > LEVEL_GAP) & (self.level_pushes >= LEVEL_PUSHES)
-        self.level_pushes[renewed] = 0
-        return int(renewed.sum())
-
     def set_scale(self, scale: float) -> None:
         """Stiffness = scale x the full stiffness (a stitching ramp); the caller must
         re-assemble constant Hessians (IncrementalPotential.refresh_constant)."""

@@ -248,26 +248,6 @@ def test_multipliers_grow_while_the_gap_shrinks_then_a_few_times_more_by_at_most
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 * (1 + LEVEL_PUSHES) + 1.5e4, rtol=1e-9)
 
 
-def test_a_garment_at_rest_with_a_seam_open_gets_its_levelled_gaps_pushed_again():
-    from sim.seams.energy import LEVEL_PUSHES
-
-    seam = two_panels(0.02).model.seam
-    C = two_panels(0.02).C
-    seam.max_step = np.full_like(seam.max_step, np.inf)
-    for _ in range(LEVEL_PUSHES + 2):  # the first update, LEVEL_PUSHES pushes, one refused
-        seam.update_multipliers(C)
-    blocked = seam.multipliers.copy()
-    assert seam.renew_pushes() == len(seam.level_pushes)  # every 2 cm gap
-    seam.update_multipliers(C)
-    np.testing.assert_allclose(np.abs(seam.multipliers).max(), np.abs(blocked).max() + 2e4, rtol=1e-9)
-    assert seam.renew_pushes() == 0  # pushes left: nothing to renew
-    closed = C.copy()
-    closed[: C.shape[0] // 2, 0] += 0.02  # panel a on b: closed gaps get none
-    seam.update_multipliers(closed)
-    seam.level_pushes[:] = LEVEL_PUSHES
-    assert seam.renew_pushes() == 0
-
-
 def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
     """Sheets a (z = +h) and b (z = -h) with a seam joining their x = 0.1 edges, and a third
     sheet at z = 0 reaching in between them over y < -0.005 (half of the seam): the pleat
