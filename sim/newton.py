@@ -229,7 +229,7 @@ def _advance_each(ip, drive, C, stats):
 # Doublings tried by default (NewtonOptions.extrapolate, a scene's newton_extrapolate).
 # Where the clamped Hessian sees no curvature along a buckling mode, full steps crawl down
 # it: the frictionless sheet on a sphere, 75^2, 45 steps, 28.8 -> 21.1 Newton iterations
-# a step (10.5 -> 9.0 s); the seeded hanging sheet, 53 steps, 9.57 -> 8.68 (2.68 -> 2.29 s).
+# a step (10.5 -> 9.0 s); the seeded hanging sheet, 53 steps, 9.57 -> 8.68 (2.27 -> 1.91 s).
 EXTRAPOLATE = 4
 # ... but not inside a narrow friction band, where the doublings cost more than they save
 # (the dress on the dancer with eps_v 1e-3: 456 -> 520 iterations; docs/findings.md).

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.newton import EXTRAPOLATE, EXTRAPOLATE_MIN_EPS_V
 from sim.materials import MEMBRANE_MODELS, MIN_CONTROL_POINTS, PRESETS, QUADRATURES, Material
+from sim.newton import EXTRAPOLATE, EXTRAPOLATE_MIN_EPS_V
 from sim.patches import Patch
 from garment.scene.schema import Key, declare, key
 

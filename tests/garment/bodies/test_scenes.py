@@ -137,9 +137,15 @@ def test_bad_scene_keys(case, change, message):
         loads_scene(change(SKIN.format(frames=4)))
 
 
-def test_a_cloth_falls_on_the_jumping_makehuman_body():
+def test_a_cloth_falls_on_the_jumping_makehuman_body(monkeypatch):
     """CMU 01_01 from 3.45 s (the push-off of the first forward jump) on the MakeHuman
     body: the head rises 2 m/s into a sheet dropped on it."""
+    from sim.energies import barrier
+
+    # ipctk's parallel sums change order between runs; in one of about a dozen the sheet
+    # pinched against the head for a step and the body lagged its pose by 1e-6 m. In
+    # order, the run is the same every time.
+    monkeypatch.setattr(barrier, "REPRODUCIBLE", True)
     scene = loads_scene(SKIN.format(frames=5))
     sim = build_simulator(scene)
     body = sim.model.obstacles[0]
