@@ -40,6 +40,7 @@ import numpy as np
 
 from sim.errors import InputError, SimulationError
 from sim.files import atomic_write, output_folder
+from sim.newton import EXTRAPOLATE
 
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..scene.schema import key, rule, within
@@ -96,7 +97,7 @@ class DressOptions:
     # fall short of the energy's fall instead, which doublings take up. Gravity ramp:
     # 21.1 -> 14.8 Newton iterations a step (docs/dressing.md, "Static friction band").
     eps_v: float = key(1e-2, doc="friction's static band", unit="m/s", gt=0)
-    newton_extrapolate: int = key(4, doc="Newton step doublings (0: none)", ge=0)
+    newton_extrapolate: int = key(EXTRAPOLATE, doc="Newton step doublings (0: none)", ge=0)
     # Newton stops at 10 % of the step's RMS control-point speed (or at newton_tol, if
     # larger): the rest shape is wanted, not the fall's path (sim/newton.tolerance).
     newton_relative_tol: float = key(0.1, doc="Newton's tolerance as a fraction of the step's speed", ge=0)
