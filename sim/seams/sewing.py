@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .energy import SeamEnergy
-from .routes import MIN_GAP, waypoints
+from .routes import MIN_GAP, junction_waypoints, waypoints
 from .spec import SeamSpec
 
 
@@ -67,6 +67,7 @@ class Sewing:
         counts = [len(s.uv_a) for s in seams]
         self.start = np.cumsum([0] + counts)  # seam k's samples: start[k]:start[k + 1]
         self.faces = self._pleat_faces()
+        self.junctions = _junctions(seams, self.start)
         if options.ramp > 0.0:
             energy.set_scale(self.scale(dt))  # the first step's
 
@@ -103,7 +104,13 @@ class Sewing:
         check = np.flatnonzero(e.active & (np.linalg.norm(a - b, axis=1) > MIN_GAP))
         routed, points = np.zeros(len(a), bool), np.zeros_like(a)
         if len(check) and len(body_F):
-            routed[check], points[check] = waypoints(a[check], b[check], body_V, body_F, self._tangents(a)[check])
+            previous = np.where(e.routed[:, None], e.waypoints, np.nan)
+            routed[check], points[check] = waypoints(a[check], b[check], body_V, body_F, self._tangents(a)[check],
+                                                     previous[check])
+            is_open = np.zeros(len(a), bool)
+            is_open[check] = True
+            groups = [g[is_open[g]] for g in self.junctions]
+            junction_waypoints([g for g in groups if len(g) > 1], a, b, routed, points, body_V, body_F, previous)
         if not routed.any() and not e.routed.any():
             return False
         return e.route(routed, points)
@@ -175,3 +182,28 @@ class Sewing:
             else:
                 waiting[samples] = True
         return waiting
+
+
+def _junctions(seams: list[SeamSpec], start: np.ndarray) -> list[np.ndarray]:
+    """Groups (arrays of sample indices, two or more) of samples that share a side point:
+    the same parameters on the same piece, where seams meet at a panel corner."""
+    owner: dict[tuple, int] = {}
+    parent = np.arange(start[-1])
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for k, s in enumerate(seams):
+        for piece, uv in ((s.piece_a, s.uv_a), (s.piece_b, s.uv_b)):
+            for j, key in enumerate(map(tuple, np.round(np.asarray(uv, float), 9))):
+                i = start[k] + j
+                other = owner.setdefault((piece, key), i)
+                parent[root(i)] = root(other)
+    roots = np.array([root(i) for i in range(len(parent))], np.int64)
+    _, inverse, counts = np.unique(roots, return_inverse=True, return_counts=True)
+    order = np.argsort(inverse, kind="stable")
+    groups = np.split(order, np.cumsum(counts)[:-1])
+    return [g for g in groups if len(g) > 1]

@@ -10,8 +10,8 @@ from garment.io.obstacles import ObstacleGeometry
 from sim.materials import PRESETS
 from sim.model import ContactOptions, bspline_model
 from sim.patches import Patch
-from sim.seams.routes import waypoints
-from sim.seams.sewing import SewingOptions
+from sim.seams.routes import junction_waypoints, waypoints
+from sim.seams.sewing import SewingOptions, _junctions
 from sim.seams.spec import SeamSpec
 from sim.simulator import Simulator
 
@@ -45,6 +45,52 @@ def test_a_path_through_a_ball_gets_a_waypoint_whose_legs_clear_it():
     assert routed[0] and abs(w[0, 2]) <= 0.5 * np.linalg.norm(w[0]) + 1e-12
     for end in (a[0], b[0]):
         assert _segment_distance(np.zeros(3), end, w[0]) > 0.99 * r
+
+
+def test_a_routed_path_keeps_its_side_of_the_ball_once_it_comes_clear_on_the_other():
+    # Routed over a ball at the last step (previous waypoint above it), a path that has
+    # slid under the ball is clear, but closing it there would close the seam round the
+    # other side: it stays routed, over the top.
+    r = 0.1
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=r)
+    V, F = np.asarray(ball.vertices), np.asarray(ball.faces, np.int32)
+    a, b = np.array([[-0.15, 0.0, -0.12]]), np.array([[0.15, 0.0, -0.12]])
+    routed, w = waypoints(a, b, V, F)
+    assert not routed[0]  # clear underneath
+    routed, w = waypoints(a, b, V, F, previous=np.array([[0.0, 0.0, 0.2]]))
+    assert routed[0] and w[0, 2] > r
+    for end in (a[0], b[0]):
+        assert _segment_distance(np.zeros(3), end, w[0]) > 0.99 * r
+    # Routed under it before, the same path is simply clear.
+    routed, _ = waypoints(a, b, V, F, previous=np.array([[0.0, 0.0, -0.2]]))
+    assert not routed[0]
+
+
+def test_seams_meeting_at_a_junction_go_round_a_ball_together():
+    # Four corners that become one point, two above a ball's equator and two below, joined
+    # in a cycle of four seams (a cuff's and a flounce's side seams and their seams to each
+    # other). Each on its own, the upper pair goes over the ball and the lower pair under
+    # it, so a corner would be pulled two ways and the corners would stay apart.
+    r = 0.1
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=r)
+    V, F = np.asarray(ball.vertices), np.asarray(ball.faces, np.int32)
+    P = np.array([[-0.15, 0.0, 0.03], [0.15, 0.0, 0.03], [-0.15, 0.0, -0.03], [0.15, 0.0, -0.03]])
+    pairs = np.array([[0, 1], [2, 3], [0, 2], [1, 3]])
+    a, b = P[pairs[:, 0]], P[pairs[:, 1]]
+    routed, w = waypoints(a, b, V, F)
+    assert routed.tolist() == [True, True, False, False]
+    assert w[0, 2] > 0.05 and w[1, 2] < -0.05  # over and under
+    junction_waypoints([np.arange(4)], a, b, routed, w, V, F)
+    assert routed.all()
+    np.testing.assert_array_equal(w, np.tile(w[0], (4, 1)))  # one point for all
+    for corner in P:
+        assert _segment_distance(np.zeros(3), corner, w[0]) > 0.99 * r
+    # The junction groups come from the seams: samples sharing parameters on one piece.
+    seams = [SeamSpec("cuff_f", np.array([[0.0, 0.0], [0.0, 1.0]]), "cuff_b", np.array([[3.0, 0.0], [3.0, 1.0]])),
+             SeamSpec("cuff_b", np.array([[3.0, 1.0], [2.0, 1.0]]), "flounce", np.array([[0.0, 0.0], [1.0, 0.0]])),
+             SeamSpec("cuff_f", np.array([[5.0, 5.0]]), "flounce", np.array([[4.0, 4.0]]))]
+    groups = _junctions(seams, np.array([0, 2, 4, 5]))
+    assert [g.tolist() for g in groups] == [[1, 2]]
 
 
 def test_routed_seam_energy_derivatives_match_finite_differences():
@@ -107,6 +153,6 @@ def test_a_seam_closes_over_a_wall_between_its_panels_not_into_it(monkeypatch):
     gap, top = _sew_over_a_wall()
     assert gap < 1e-3 and top > 0.0, (gap, top)  # closed, over the wall's top (z = 0)
     # Pulled straight (no waypoints), the same seam presses its panels into the wall.
-    monkeypatch.setattr(sewing_module, "waypoints", lambda a, b, V, F, t: (np.zeros(len(a), bool), 0.5 * (a + b)))
+    monkeypatch.setattr(sewing_module, "waypoints", lambda a, b, V, F, t, p: (np.zeros(len(a), bool), 0.5 * (a + b)))
     gap, top = _sew_over_a_wall()
     assert gap > 0.02 and top < 0.0, (gap, top)
