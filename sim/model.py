@@ -384,6 +384,18 @@ class Model:
         reach = self.sewing.options.block_reach * self.barrier.dhat
         return self.seam_contact.update_blocked(C, self.barrier.contact, reach)
 
+    def screened_samples(self, C: np.ndarray) -> np.ndarray | None:
+        """(S,) seam samples whose path passes through other cloth (Sewing.screened), or
+        None without contact or during no ramp."""
+        if self.barrier is None or self.sewing is None or self.sewing.energy.scale >= 1.0:
+            return None
+        mesh = self.barrier.contact
+        if mesh.piece_ids is None:
+            return None
+        face_piece = mesh.piece_ids[mesh.cloth_faces[:, 0]]
+        index = {p.name: k for k, p in enumerate(self.pieces)}
+        return self.sewing.screened(C, mesh.vertices(C)[:mesh.n_cloth], mesh.cloth_faces, face_piece, index)
+
     def _set_piece_rows(self, mesh: ContactMesh) -> None:
         """Exported meshes follow the contact mesh (SeamContact.rows)."""
         rows, start = self.seam_contact.rows(mesh), 0

@@ -27,7 +27,8 @@ def step(model: Model, state: State) -> StepStats:
     stats.extra["seam_pairs_sewn"] = float(model.merge_seams(state.C))
     blocked = model.blocked_pairs(state.C)
     stats.extra["seam_pairs_blocked"] = float(blocked.sum()) if blocked is not None else 0.0
-    if sewing is not None and sewing.hold(state.C, state.t, state.pleat_faces, blocked):
+    screened = model.screened_samples(state.C)
+    if sewing is not None and sewing.hold(state.C, state.t, state.pleat_faces, blocked, screened):
         model.potential.refresh_constant()
     if sewing is not None and model.barrier is not None:
         contact = model.barrier.contact

@@ -47,6 +47,22 @@ def through(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.nd
     return hit
 
 
+def through_cloth(a: np.ndarray, b: np.ndarray, pieces: np.ndarray, x: np.ndarray, faces: np.ndarray,
+                  face_piece: np.ndarray) -> np.ndarray:
+    """(K,) bool: whether the segment a_k b_k passes through a cloth triangle (x[faces],
+    of piece face_piece) of a piece other than its own two (pieces (K, 2))."""
+    hit = np.zeros(len(a), bool)
+    if len(a) == 0 or len(faces) == 0:
+        return hit
+    pts = np.concatenate([np.stack([a, b], axis=1).reshape(-1, 3), x])
+    edges = np.arange(2 * len(a)).reshape(-1, 2)
+    pairs = crossing_pairs(pts, edges, np.asarray(faces) + 2 * len(a))
+    if len(pairs):
+        other = (face_piece[pairs[:, 1], None] != pieces[pairs[:, 0]]).all(axis=1)
+        hit[pairs[other, 0]] = True
+    return hit
+
+
 def enclosed(a: np.ndarray, b: np.ndarray, p: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """(K,) bool: whether the body (V, F) passes through the triangle a_k p_k b_k, that is,
     whether the loop from a over p to b and straight back goes round it."""

@@ -10,7 +10,7 @@ from garment.io.obstacles import ObstacleGeometry
 from sim.materials import PRESETS
 from sim.model import ContactOptions, bspline_model
 from sim.patches import Patch
-from sim.seams.routes import junction_waypoints, waypoints
+from sim.seams.routes import junction_waypoints, through_cloth, waypoints
 from sim.seams.sewing import SewingOptions, _junctions
 from sim.seams.spec import SeamSpec
 from sim.simulator import Simulator
@@ -91,6 +91,19 @@ def test_seams_meeting_at_a_junction_go_round_a_ball_together():
              SeamSpec("cuff_f", np.array([[5.0, 5.0]]), "flounce", np.array([[4.0, 4.0]]))]
     groups = _junctions(seams, np.array([0, 2, 4, 5]))
     assert [g.tolist() for g in groups] == [[1, 2]]
+
+
+def test_a_path_through_another_pieces_cloth_is_screened_not_through_its_own():
+    # A square of cloth (piece 2) in the plane z = 0; three paths from below to above it:
+    # through it (its pieces 0 and 1: screened), through it but sewing piece 2 itself (not
+    # screened: a seam's own cloth is not in its way), and beside it (clear).
+    x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    a = np.array([[0.5, 0.5, -0.1], [0.3, 0.6, -0.1], [1.5, 0.5, -0.1]])
+    b = a + [0.0, 0.0, 0.2]
+    pieces = np.array([[0, 1], [2, 0], [0, 1]])
+    hit = through_cloth(a, b, pieces, x, faces, np.array([2, 2]))
+    assert hit.tolist() == [True, False, False]
 
 
 def test_routed_seam_energy_derivatives_match_finite_differences():
