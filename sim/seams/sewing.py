@@ -7,7 +7,9 @@ pre-roll, and the rising stiffness then holds them below 1 mm. The start is abso
 a fraction of k: it is what grams of cloth across open gaps can take.
 
 An open sample whose straight path to its partner passes through a body pulls both sides
-to a waypoint beside the body instead (`route`, sim/seams/routes.py).
+to a waypoint beside the body instead (`route`, sim/seams/routes.py). One whose path passes
+through another piece's cloth does not pull while the seams stiffen (`screened`): the cloth
+between its sides would be pinned there.
 
 Once a matched contact-vertex pair is nearly closed it merges (sim/seams/contact.py); a
 pair that cannot merge without cloth passing through cloth is blocked, and the samples
