@@ -385,10 +385,10 @@ class Model:
         return self.seam_contact.update_blocked(C, self.barrier.contact, reach)
 
     def screened_samples(self, C: np.ndarray) -> np.ndarray | None:
-        """(S,) seam samples whose path passes through other cloth during the ramp
-        (Sewing.screened), or None without contact or at full stiffness."""
+        """(S,) seam samples whose path passes through other cloth (Sewing.screened), or
+        None without contact or during no ramp."""
         if self.barrier is None or self.sewing is None or self.sewing.energy.scale >= 1.0:
-            return None  # Sewing.screened would say so; this skips building its inputs
+            return None
         mesh = self.barrier.contact
         if mesh.piece_ids is None:
             return None
