@@ -385,10 +385,10 @@ class Model:
         return self.seam_contact.update_blocked(C, self.barrier.contact, reach)
 
     def screened_samples(self, C: np.ndarray) -> np.ndarray | None:
-        """(S,) seam samples whose path passes through other cloth (Sewing.screened), or
-        None without contact or during no ramp."""
+        """(S,) seam samples whose path passes through other cloth during the ramp
+        (Sewing.screened), or None without contact or at full stiffness."""
         if self.barrier is None or self.sewing is None or self.sewing.energy.scale >= 1.0:
-            return None
+            return None  # Sewing.screened would say so; this skips building its inputs
         mesh = self.barrier.contact
         if mesh.piece_ids is None:
             return None

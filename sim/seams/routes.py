@@ -63,14 +63,19 @@ def through_cloth(a: np.ndarray, b: np.ndarray, pieces: np.ndarray, x: np.ndarra
     return hit
 
 
-def enclosed(a: np.ndarray, b: np.ndarray, p: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(K,) bool: whether the body (V, F) passes through the triangle a_k p_k b_k, that is,
-    whether the loop from a over p to b and straight back goes round it."""
-    hit = np.zeros(len(a), bool)
-    if len(a) == 0 or len(F) == 0:
-        return hit
+def body_edges(F: np.ndarray) -> np.ndarray:
+    """(E, 2) the unique edges of the triangles F."""
     F = np.asarray(F)
-    E = np.unique(np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+    return np.unique(np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+
+
+def enclosed(a: np.ndarray, b: np.ndarray, p: np.ndarray, V: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """(K,) bool: whether the body (V, its edges E: `body_edges`) passes through the
+    triangle a_k p_k b_k, that is, whether the loop from a over p to b and straight back
+    goes round it."""
+    hit = np.zeros(len(a), bool)
+    if len(a) == 0 or len(E) == 0:
+        return hit
     x = np.concatenate([np.stack([a, p, b], axis=1).reshape(-1, 3), V])
     triangles = np.arange(3 * len(a)).reshape(-1, 3)
     hit[crossing_pairs(x, E + 3 * len(a), triangles)[:, 1]] = True
@@ -97,10 +102,13 @@ def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
     through_now = through(a, b, V, F)
     going = through_now.copy()
     side = np.zeros_like(a)
+    E = None  # the body's edges, found once where a loop is tested
     if previous is not None:
         kept = np.flatnonzero(np.isfinite(previous[:, 0]))
         side[kept] = previous[kept] - mid[kept]
-        going[kept] |= enclosed(a[kept], b[kept], previous[kept], V, F)
+        if len(kept):
+            E = body_edges(F)
+            going[kept] |= enclosed(a[kept], b[kept], previous[kept], V, E)
     todo = np.flatnonzero(going)
     if len(todo) == 0:
         return routed, points
@@ -113,8 +121,8 @@ def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
     # On its side: a new waypoint on the same side of the path, and where the straight path
     # has come clear, a loop that still goes round the body.
     same_side = np.einsum("tdk,tk->td", ring, side[todo]) >= 0.0
-    wrap = ~through_now[todo] if previous is not None else np.zeros(len(todo), bool)
-    found, w = _detour(a[todo], b[todo], ring, across & same_side, V, F, wrap)
+    wrap = ~through_now[todo]  # routed only because its loop goes round the body
+    found, w = _detour(a[todo], b[todo], ring, across & same_side, V, F, wrap, E)
     again = np.flatnonzero(~found & ~wrap & (across & ~same_side).any(axis=1))
     if len(again):  # no way round on its side: any side
         found[again], w[again] = _detour(a[todo[again]], b[todo[again]], ring[again], across[again], V, F)
@@ -124,11 +132,12 @@ def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
 
 
 def _detour(a: np.ndarray, b: np.ndarray, ring: np.ndarray, allowed: np.ndarray, V: np.ndarray,
-            F: np.ndarray, wrap: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+            F: np.ndarray, wrap: np.ndarray | None = None,
+            E: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each path a_k -> b_k, the shortest waypoint at the least height (HEIGHTS) above
     its midpoint in an allowed direction of its ring (K, DIRECTIONS, 3) whose legs clear
-    the body, and for those in wrap (K,) bool whose loop goes round it (`enclosed`):
-    (found (K,) bool, waypoints (K, 3))."""
+    the body, and for those in wrap (K,) bool whose loop goes round it (`enclosed`, on the
+    body's edges E): (found (K,) bool, waypoints (K, 3))."""
     mid = 0.5 * (a + b)
     found = np.zeros(len(a), bool)
     points = mid.copy()
@@ -142,7 +151,7 @@ def _detour(a: np.ndarray, b: np.ndarray, ring: np.ndarray, allowed: np.ndarray,
         blocked = (legs[:len(W)] | legs[len(W):]).reshape(len(todo), DIRECTIONS)
         if wrap is not None and wrap[todo].any():
             rows = np.repeat(wrap[todo], DIRECTIONS)
-            blocked.reshape(-1)[rows] |= ~enclosed(A[rows], B[rows], W[rows], V, F)
+            blocked.reshape(-1)[rows] |= ~enclosed(A[rows], B[rows], W[rows], V, E)
         length = np.linalg.norm(w - a[todo, None], axis=2) + np.linalg.norm(w - b[todo, None], axis=2)
         length[blocked | ~allowed[todo]] = np.inf
         best = np.argmin(length, axis=1)

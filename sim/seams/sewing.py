@@ -97,7 +97,7 @@ class Sewing:
         if blocked_pairs is not None:
             held = np.append(blocked_pairs, False)[self.sample_pair]
         waiting = self._waiting_samples(C, t, released)
-        if screened is not None and self.energy.scale < 1.0:
+        if screened is not None:
             waiting |= screened
         return self.energy.hold(~held & ~waiting, held & ~waiting)
 
@@ -106,8 +106,7 @@ class Sewing:
         body_F: every obstacle as it stands) round it (sim/seams/routes.py). Returns
         whether the stiffness changed."""
         e = self.energy
-        a, b = e.samples.Na @ C, e.samples.Nb @ C
-        check = np.flatnonzero(e.active & (np.linalg.norm(a - b, axis=1) > MIN_GAP))
+        a, b, check = self._open(C)
         routed, points = np.zeros(len(a), bool), np.zeros_like(a)
         if len(check) and len(body_F):
             previous = np.where(e.routed[:, None], e.waypoints, np.nan)
@@ -122,22 +121,29 @@ class Sewing:
         return e.route(routed, points)
 
     def screened(self, C: np.ndarray, x: np.ndarray, faces: np.ndarray, face_piece: np.ndarray,
-                 piece_index: dict[str, int]) -> np.ndarray:
-        """(S,) bool: open samples whose straight path passes through the cloth (contact
-        vertices x, cloth faces of piece face_piece) of a piece other than its own two.
-        Pulled shut during the ramp, such a seam closes round that cloth and pins it
-        between its sides (upper_garment_06's torso side seams round its bell sleeves,
-        laid flat between the front and back torso panels: every pair blocked, the seams
-        held 2-4 mm open)."""
-        e = self.energy
-        a, b = e.samples.Na @ C, e.samples.Nb @ C
-        check = np.flatnonzero(e.active & (np.linalg.norm(a - b, axis=1) > MIN_GAP))
+                 piece_index: dict[str, int]) -> np.ndarray | None:
+        """(S,) bool: during the ramp, open samples whose straight path passes through the
+        cloth (contact vertices x, cloth faces of piece face_piece) of a piece other than
+        its own two; None at full stiffness. Pulled shut during the ramp, such a seam
+        closes round that cloth and pins it between its sides (upper_garment_06's torso
+        side seams round its bell sleeves, laid flat between the front and back torso
+        panels: every pair blocked, the seams held 2-4 mm open)."""
+        if self.energy.scale >= 1.0:
+            return None
+        a, b, check = self._open(C)
         out = np.zeros(len(a), bool)
         if len(check):
             own = np.array([[piece_index[s.piece_a], piece_index[s.piece_b]] for s in self.seams])
             pieces = np.repeat(own, np.diff(self.start), axis=0)
             out[check] = through_cloth(a[check], b[check], pieces[check], x, faces, face_piece)
         return out
+
+    def _open(self, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Both sides of every sample (S, 3) each, and the indices of the pulled samples
+        still open by more than MIN_GAP (closing seams lie on the cloth: not checked)."""
+        e = self.energy
+        a, b = e.samples.Na @ C, e.samples.Nb @ C
+        return a, b, np.flatnonzero(e.active & (np.linalg.norm(a - b, axis=1) > MIN_GAP))
 
     def _tangents(self, a: np.ndarray) -> np.ndarray:
         """(S, 3) each sample's direction along its seam (side a; zero for a seam of one
