@@ -160,3 +160,22 @@ def test_dress_skirt_back_is_split_at_its_darts():
     # Each dart now sews two neighbouring pieces (seams to panels not converted here drop).
     darts = {s.name: {s.patch_a, s.patch_b} for s in ps.seams if s.name.startswith("stitch")}
     assert darts == {f"stitch{k}": {names[k], names[k + 1]} for k in range(4)}
+
+
+def test_a_seam_shorter_than_the_fit_tolerance_on_both_panels_is_dropped():
+    # GarmentCode's fitted shirts join front and back torso at the waist's side with a
+    # 1.46 mm and a 0.75 mm edge: below a 1.9 mm boundary fit tolerance on both panels, the
+    # seam is one point of both fitted boundaries and is dropped; dress_00's strap tips
+    # (2.43 / 5.17 mm) and a seam short on one panel only are kept.
+    from conform.pipeline import below_resolution
+    from sim.seams.spec import PanelSeam
+
+    def seam(la: float, lb: float) -> PanelSeam:
+        t = np.linspace(0.0, 1.0, 3)[:, None]
+        return PanelSeam("s", "front", "back", t * [la, 0.0], t * [0.0, lb])
+
+    fit = {"front": 1.9e-3, "back": 1.9e-3}
+    assert below_resolution(seam(1.46e-3, 0.75e-3), fit)
+    assert not below_resolution(seam(2.43e-3, 5.17e-3), fit)
+    assert not below_resolution(seam(1.46e-3, 30e-3), fit)
+    assert not below_resolution(seam(1.46e-3, 0.75e-3), {"front": 1e-3, "back": 1.9e-3})
