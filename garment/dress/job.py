@@ -147,6 +147,7 @@ def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -
         report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.moved.items()}
         report["lifted_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.lifted.items()}
         report["raised_arms_deg"] = placed.raise_arms
+        report["seams_below_resolution"] = placed.below_resolution
         obstacle = {"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up,
                     "raise_arms": placed.raise_arms}
         _simulate(dress_scene(outdir / "patches.json", obstacle, options), options, outdir, frame, report,
@@ -205,6 +206,7 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, raise_arms=angle, grow=grow, arms=arms)
     layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=panels)
     layout.lifted, layout.raise_arms = lifted, angle
+    layout.below_resolution = sorted({n for q in ps.quality.values() for n in q.get("seams_below_resolution", [])})
     save_patchset(outdir / "patches.json", ps)
     return layout
 

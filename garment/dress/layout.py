@@ -46,6 +46,7 @@ class Layout:
     rounds: int = 0
     lifted: dict[str, float] = field(default_factory=dict)  # lift_over_body, m
     raise_arms: float = 0.0  # arms_out_of_the_way, degrees
+    below_resolution: list[str] = field(default_factory=list)  # seams conform dropped (conform/pipeline.py)
 
 
 @dataclass
