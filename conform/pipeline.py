@@ -614,11 +614,11 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
             tol[piece.name] = 2e-3 * rep["tolerance_mm"]  # twice the fit tolerance, metres
             if on_panel:
                 on_panel(piece, rep, None)
-    mapped = []
+    mapped, fit = [], {name: 0.5 * t for name, t in tol.items()}  # the boundary fit tolerances
     for s in all_seams:
         if s.panel_a not in patches or s.panel_b not in patches:
             continue
-        if below_resolution(s, {name: 0.5 * t for name, t in tol.items()}):
+        if below_resolution(s, fit):
             quality[s.panel_a].setdefault("seams_below_resolution", []).append(s.name)
             continue
         mapped.append(map_seam(s, patches, tol))
