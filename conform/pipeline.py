@@ -10,8 +10,12 @@ panel diameter) - the pair's count grows by a quarter and the sides are refitted
 `adapt_rounds` times; when MIPS cannot untangle the net at all (a boundary that admits no
 valid interior at that resolution, e.g. tabs between deep darts), the longer pair's count
 grows by a quarter and it starts again, up to UNTANGLE_RETRIES times (neither with given
-counts). The boundary rows are the side fits, offset to keep the panel's area, and stay
-fixed during MIPS unless MipsOptions.w_boundary is finite.
+counts). The attempts share one untangling budget of Newton steps x net cells, sized by
+the net the panel's area needs (untangle_budget): a net far denser than that - both pairs
+of sides long around little cloth, as a spike from a stray vertex makes them - gets
+proportionally fewer steps and fails in seconds, with an error that says so, where it
+took minutes of ever larger nets. The boundary rows are the side fits, offset to keep the
+panel's area, and stay fixed during MIPS unless MipsOptions.w_boundary is finite.
 
 A garment (conform_all): panels with deep darts are first cut into pieces along the darts'
 continuations (split.py, ConformOptions.split), each piece conformed as above and the
@@ -39,7 +43,7 @@ from .curve_fit import (LAMBDA, SideSamples, evaluate, fit_side_reweighted, norm
                         second_difference)
 from .grading import SHORT, Request, grade
 from .lift import lift
-from .mips import BoundaryFit, MipsOptions, det, rule_points
+from .mips import STALL_WINDOW, BoundaryFit, MipsOptions, det, rule_points
 from .mips import refine as mips_refine
 from .pleats import fold_panels, fold_span, pleat_faces
 from .quality import folded, lift_strain, polyline_distance, report
@@ -147,6 +151,46 @@ def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float, grading=
 UNTANGLE_RETRIES = 3
 
 
+def untangle_budget(area: float, span: float, n: int, m: int, options: ConformOptions) -> float:
+    """The untangling work one panel may spend at one net level, in Newton steps x net
+    cells: the steps every attempt may take (MipsOptions.untangle_iterations, 1 +
+    UNTANGLE_RETRIES attempts) on the net the panel needs - area / span^2 cells, and at
+    least the 3 spans across of the smallest net along its longer direction (an n x m
+    net: 3 (max(n, m) - 2)). A well-laid net gets the steps it always had; one that is
+    k times denser than its area needs (a spike: both pairs of sides long around little
+    cloth) gets k times fewer, so it costs what a well-laid net of the panel would."""
+    need = max(area / span**2, 3.0 * (max(n, m) - 2))
+    return float(options.mips.untangle_iterations * (UNTANGLE_RETRIES + 1) * need)
+
+
+def _cells(n: int, m: int) -> int:
+    return (n - 2) * (m - 2)
+
+
+def _untangle_cap(budget: float, spent: float, n: int, m: int, options: ConformOptions) -> int:
+    """Untangling steps the next attempt on an n x m net may take: what is left of the
+    budget, at most MipsOptions.untangle_iterations."""
+    return int(min(options.mips.untangle_iterations, max(budget - spent, 0.0) // _cells(n, m)))
+
+
+def _starved(res, cap: int, options: ConformOptions) -> bool:
+    """Whether a failed attempt stopped at the budget's cap, not at the untangler's own."""
+    return res.energy == np.inf and cap < options.mips.untangle_iterations and res.untangle_iterations >= cap
+
+
+def _overdense(panel: Panel, outline: Outline, sides: Sides, n: int, m: int, span: float, budget: float,
+               options: ConformOptions) -> PanelError:
+    """The error of a net that ran out of untangling budget: how much denser it is than
+    the panel's area needs, the sides that made it so, and what to do."""
+    need = budget / (options.mips.untangle_iterations * (UNTANGLE_RETRIES + 1))
+    sides_m = ", ".join(f"{length:.3g}" for length in sides.lengths)
+    return PanelError(panel, f"could not untangle the control net ({n} x {m}) with the work a panel of "
+                             f"{outline.area:.3g} m^2 gets: it has {_cells(n, m) / need:.0f} times the cells that area "
+                             f"needs at {span * 1e3:.3g} mm knot spans, its four sides ({sides_m} m) running long "
+                             "around little cloth - a spike or a stray vertex in the outline? Check the outline, or "
+                             "give the panel's four corners with --corners")
+
+
 def _grow(count: int) -> int:
     """A quarter more knot spans."""
     return int(np.ceil(1.25 * (count - 2))) + 2
@@ -198,9 +242,11 @@ def _spacing(spacing: float, sides: Sides, n: int, m: int) -> float:
     return min(spacing, 0.25 * min(max(L[0], L[2]) / (n - 2), max(L[1], L[3]) / (m - 2)))
 
 
-def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOptions, w_boundary: float):
+def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOptions, w_boundary: float,
+           untangle_iterations: int | None = None):
     """MIPS on the net X whose boundary rows are the side fits: the boundary fixed
-    (w_boundary = inf) or held by the penalty w_boundary E_fit, anchored to those rows."""
+    (w_boundary = inf) or held by the penalty w_boundary E_fit, anchored to those rows;
+    untangle_iterations: the untangling steps this attempt may take (None: the options')."""
     n, m = X.shape[:2]
     fixed = np.zeros((n, m), bool)
     fixed[[0, 0, -1, -1], [0, -1, 0, -1]] = True
@@ -213,6 +259,8 @@ def _solve(X: np.ndarray, scale, samples: list[SideSamples], options: ConformOpt
     bt = boundary_term(anchored, n, m, options.lam, h)
     bt.c -= bt.value(X.reshape(-1, 2)) * bt.h**2  # round-off: E_fit(X) = 0 exactly
     mips_options = dataclasses.replace(options.mips, w_boundary=w_boundary)
+    if untangle_iterations is not None:
+        mips_options = dataclasses.replace(mips_options, untangle_iterations=untangle_iterations)
     return mips_refine(X, scale, bt, fixed, mips_options)
 
 
@@ -329,27 +377,40 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
             Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
             X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = Xb[:, 0], Xb[-1, :], Xb[::-1, -1], Xb[0, ::-1]
-        res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary)
+        # Given counts are the user's: their untangling keeps its per-attempt cap only.
+        span = h_target / 2**level
+        budget = np.inf if options.control_points is not None else untangle_budget(outline.area, span, n, m, options)
+        spent = 0.0
+        cap = _untangle_cap(budget, spent, n, m, options)
+        res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary, cap)
+        starved = _starved(res, cap, options)
         retries = 0
         while res.energy == np.inf and options.control_points is None and retries < UNTANGLE_RETRIES:
             # No valid interior at this resolution (typically tabs between darts crowding
             # the rows along the other pair of sides): more control points along the
-            # longer pair of sides, refit, start again.
+            # longer pair of sides, refit, start again - if the budget still pays for
+            # the untangler to judge progress there (STALL_WINDOW steps).
+            spent += res.untangle_iterations * _cells(n, m)
+            L = sides.lengths
+            grown = (_grow(n), m) if max(L[0], L[2]) >= max(L[1], L[3]) else (n, _grow(m))
+            cap = _untangle_cap(budget, spent, *grown, options)
+            if cap < STALL_WINDOW:
+                starved = True
+                break
             retries += 1
             failed_iterations += res.untangle_iterations
-            L = sides.lengths
-            if max(L[0], L[2]) >= max(L[1], L[3]):
-                n = _grow(n)
-            else:
-                m = _grow(m)
+            n, m = grown
             spacing = _spacing(spacing, sides, n, m)
             samples, ctrls, errors = fit_sides(sides, n, m, spacing, options.lam, grading)
             Xb, area_offset = match_area(assemble_boundary(ctrls), outline.area)
             X = interior_start(Xb)
-            res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary)
+            res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary, cap)
+            starved = _starved(res, cap, options)
         solves.append(res)
         X = res.X
         if res.energy == np.inf:
+            if starved:
+                raise _overdense(panel, outline, sides, n, m, span, budget, options)
             raise PanelError(panel, f"could not untangle the control net ({n} x {m}); try other corners "
                                     "or a finer knot span")
 

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from rich.markup import escape
 
 from sim.errors import InputError, printable
 from sim.files import atomic_write, output_file, output_folder
@@ -148,7 +149,7 @@ def run(args) -> int:
         def on_panel(panel, rep, error):
             rows.append(row(panel.name, rep, None if error is None else str(error)))
             # A split panel reports each of its pieces: the total grows with them.
-            bar.update(task, advance=1, total=max(len(panels), len(rows)), status=f"{panel.name}: " + (
+            bar.update(task, advance=1, total=max(len(panels), len(rows)), status=f"{escape(printable(panel.name))}: " + (
                 "failed" if rep is None else f"{rep['control_points'][0]}x{rep['control_points'][1]}, "
                                              f"{rep['seconds']:.2f} s"))
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import time
 
 import numpy as np
 import pytest
@@ -146,6 +147,47 @@ def test_conform_command_bad_options(tmp_path, capsys, two_panels_and_a_hole, ar
     code = main(["conform", str(two_panels_and_a_hole), "-o", str(tmp_path / "o"), "-q", "--panels", "front"] + args)
     err = capsys.readouterr().err
     assert code in (1, 2) and fragment in err and "Traceback" not in err
+
+
+def _fuzz_seed_panels(path, mutate=None):
+    """The panel OBJ the fuzz test mutates (tests/garment/test_fuzz.py make_seeds): a 0.2
+    x 0.15 m front, a 0.15 m square back beside it, two stitches; mutate(text) -> text."""
+    V, F = grid(5, 4, (0.2, 0.15))
+    V2, F2 = grid(4, 4, (0.15, 0.15), (0.3, 0.0))
+    write_obj(path, [("front", V, F), ("back", V2, F2)], seams=[[(3, 20, 21, 0.5), (7, 24, 25, 0.0)]])
+    if mutate is not None:
+        path.write_text(mutate(path.read_text()))
+    return path
+
+
+def test_a_stray_vertex_fails_its_panel_in_seconds_with_the_reason(tmp_path, capsys):
+    """A fuzzed panel file that hung `garment conform --knot-span 60` (> 30 s, 40 s alone):
+    the back's corner moved from y = 0.15 to 5 m makes a spike 5 m long and 5 cm wide, both
+    pairs of sides long around 0.14 m^2 of cloth, so the net was 85 x 86 for what needs
+    ~250 cells and untangling it failed at 85 x 86, 107, 134 and 167. The untangling budget
+    (pipeline.untangle_budget) stops it after the work a panel of that area gets."""
+    path = _fuzz_seed_panels(tmp_path / "panels.obj", lambda t: t.replace("vt 0.45 0.15\n", "vt 0.45 5\n"))
+    start = time.perf_counter()
+    code = main(["conform", str(path), "-o", str(tmp_path / "out"), "-q", "--knot-span", "60"])
+    seconds = time.perf_counter() - start
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err  # the front converted, the back failed
+    assert "panels.obj: panel back: could not untangle the control net (85 x 86)" in err
+    assert "28 times the cells" in err and "0.15, 5, 4.95, 0.15 m" in err
+    assert "stray vertex" in err and "--corners" in err
+    assert [p.name for p in load_patchset(tmp_path / "out" / "patches.json").patches] == ["front"]
+    assert seconds < 20.0  # about 5 s; 40 s before
+
+
+def test_panel_names_in_the_table_are_escaped(tmp_path, capsys):
+    """Group names come from the file: a NUL byte or rich markup ([/x] raised MarkupError)
+    in a name is printed escaped, in the table and the progress bar."""
+    name = "b[/x]\x00\x1b[31m"
+    path = _fuzz_seed_panels(tmp_path / "panels.obj", lambda t: t.replace("g back", "g " + name))
+    assert main(["conform", str(path), "-o", str(tmp_path / "out"), "--knot-span", "60"]) == 0
+    captured = capsys.readouterr()
+    assert "b[/x]\\x00\\x1b[31m" in captured.out and "Traceback" not in captured.err
+    assert not any(c in captured.out + captured.err for c in "\x00\x1b")
 
 
 def test_output_directory_that_is_a_file(tmp_path, capsys, two_panels_and_a_hole):
