@@ -47,7 +47,7 @@ from .mips import STALL_WINDOW, BoundaryFit, MipsOptions, det, rule_points
 from .mips import refine as mips_refine
 from .pleats import fold_panels, fold_span, pleat_faces
 from .quality import folded, lift_strain, polyline_distance, report
-from .seams import map_seam, seam_hints, short_seams
+from .seams import below_resolution, map_seam, seam_hints, short_seams
 from .split import (PINCH, SPLIT_IMBALANCE, darts_of, imbalance, necks_of, notches_of, split_panel, split_seams,
                     trims_of)
 
@@ -151,15 +151,20 @@ def fit_sides(sides: Sides, n: int, m: int, spacing: float, lam: float, grading=
 UNTANGLE_RETRIES = 3
 
 
-def untangle_budget(area: float, span: float, n: int, m: int, options: ConformOptions) -> float:
+def cells_needed(area: float, span: float, n: int, m: int) -> float:
+    """The net cells a panel of this area needs at this knot span: area / span^2, and at
+    least the 3 spans across of the smallest net along its longer direction (an n x m
+    net: 3 (max(n, m) - 2))."""
+    return max(area / span**2, 3.0 * (max(n, m) - 2))
+
+
+def untangle_budget(need: float, options: ConformOptions) -> float:
     """The untangling work one panel may spend at one net level, in Newton steps x net
     cells: the steps every attempt may take (MipsOptions.untangle_iterations, 1 +
-    UNTANGLE_RETRIES attempts) on the net the panel needs - area / span^2 cells, and at
-    least the 3 spans across of the smallest net along its longer direction (an n x m
-    net: 3 (max(n, m) - 2)). A well-laid net gets the steps it always had; one that is
-    k times denser than its area needs (a spike: both pairs of sides long around little
-    cloth) gets k times fewer, so it costs what a well-laid net of the panel would."""
-    need = max(area / span**2, 3.0 * (max(n, m) - 2))
+    UNTANGLE_RETRIES attempts) on the `need` cells of the net the panel needs
+    (cells_needed). A well-laid net gets the steps it always had; one that is k times
+    denser than its area needs (a spike: both pairs of sides long around little cloth)
+    gets k times fewer, so it costs what a well-laid net of the panel would."""
     return float(options.mips.untangle_iterations * (UNTANGLE_RETRIES + 1) * need)
 
 
@@ -178,11 +183,9 @@ def _starved(res, cap: int, options: ConformOptions) -> bool:
     return res.energy == np.inf and cap < options.mips.untangle_iterations and res.untangle_iterations >= cap
 
 
-def _overdense(panel: Panel, outline: Outline, sides: Sides, n: int, m: int, span: float, budget: float,
-               options: ConformOptions) -> PanelError:
+def _overdense(panel: Panel, outline: Outline, sides: Sides, n: int, m: int, span: float, need: float) -> PanelError:
     """The error of a net that ran out of untangling budget: how much denser it is than
-    the panel's area needs, the sides that made it so, and what to do."""
-    need = budget / (options.mips.untangle_iterations * (UNTANGLE_RETRIES + 1))
+    the `need` cells the panel's area needs, the sides that made it so, and what to do."""
     sides_m = ", ".join(f"{length:.3g}" for length in sides.lengths)
     return PanelError(panel, f"could not untangle the control net ({n} x {m}) with the work a panel of "
                              f"{outline.area:.3g} m^2 gets: it has {_cells(n, m) / need:.0f} times the cells that area "
@@ -379,7 +382,8 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
             X[:, 0], X[-1, :], X[::-1, -1], X[0, ::-1] = Xb[:, 0], Xb[-1, :], Xb[::-1, -1], Xb[0, ::-1]
         # Given counts are the user's: their untangling keeps its per-attempt cap only.
         span = h_target / 2**level
-        budget = np.inf if options.control_points is not None else untangle_budget(outline.area, span, n, m, options)
+        need = cells_needed(outline.area, span, n, m)
+        budget = np.inf if options.control_points is not None else untangle_budget(need, options)
         spent = 0.0
         cap = _untangle_cap(budget, spent, n, m, options)
         res = _solve(X, _spans(sides, n, m, grading), samples, options, options.mips.w_boundary, cap)
@@ -410,7 +414,7 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
         X = res.X
         if res.energy == np.inf:
             if starved:
-                raise _overdense(panel, outline, sides, n, m, span, budget, options)
+                raise _overdense(panel, outline, sides, n, m, span, need)
             raise PanelError(panel, f"could not untangle the control net ({n} x {m}); try other corners "
                                     "or a finer knot span")
 
@@ -689,18 +693,6 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     source = panels[0].source if panels else ""
     summary = {name: split_summary(sp_, quality) for name, sp_ in splits.items()}
     return PatchSet(list(patches.values()), mapped, prov, quality, failures, source, summary)
-
-
-def below_resolution(seam: PanelSeam, fit: dict[str, float]) -> bool:
-    """Whether the seam is shorter on both panels than their boundary fit tolerance (fit,
-    metres by patch name): it then joins what the fitted boundaries hold as one point, and
-    the seams on either side of it end there already. Kept, its samples pull that point
-    to spots the neighbours' ends pull elsewhere, up to its own length apart, and it stays
-    about 1 mm open however hard it pulls: GarmentCode's fitted shirts join front and back
-    torso at the waist's side with a 1.46 mm and a 0.75 mm edge (jumpsuit_04's stitch39
-    ended at rest at 1.003 mm, 0.86 mm and 0.998 mm in three runs)."""
-    return all(np.linalg.norm(np.diff(np.asarray(pts, float), axis=0), axis=1).sum() < fit[name]
-               for name, pts in ((seam.panel_a, seam.points_a), (seam.panel_b, seam.points_b)))
 
 
 def piece_provenance(split, name: str) -> dict:

@@ -167,7 +167,7 @@ def test_a_seam_shorter_than_the_fit_tolerance_on_both_panels_is_dropped():
     # 1.46 mm and a 0.75 mm edge: below a 1.9 mm boundary fit tolerance on both panels, the
     # seam is one point of both fitted boundaries and is dropped; dress_00's strap tips
     # (2.43 / 5.17 mm) and a seam short on one panel only are kept.
-    from conform.pipeline import below_resolution
+    from conform.seams import below_resolution
     from sim.seams.spec import PanelSeam
 
     def seam(la: float, lb: float) -> PanelSeam:
