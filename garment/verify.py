@@ -114,11 +114,17 @@ def shared_vertices(V, F) -> tuple[np.ndarray, np.ndarray]:
     """Vertices at exactly the same position become one (the sewn panels' files repeat
     their common seam vertices bit for bit); faces collapsed by it (at a dart tip) or
     repeated (both sides of a closed dart) are dropped. Returns (V', F')."""
+    return weld(V, F)[:2]
+
+
+def weld(V, F) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """shared_vertices, and each vertex's index in V' (V,)."""
     X, label = np.unique(V, axis=0, return_inverse=True)
-    T = label.ravel()[F]
+    label = label.ravel()
+    T = label[F]
     T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 0] != T[:, 2])]
     _, first = np.unique(np.sort(T, axis=1), axis=0, return_index=True)
-    return X, T[np.sort(first)]
+    return X, T[np.sort(first)], label
 
 
 

@@ -25,6 +25,7 @@ from .drag import Drag
 from .embedding import default_resolution, grid_faces, interpolation_matrix, sample_grid
 from .energies import MEMBRANES, BendingEnergy, ExternalForceEnergy, InertiaEnergy, membrane_params
 from .energies.barrier import BarrierEnergy
+from .energies.drawstring import DrawstringEnergy
 from .energies.friction import FrictionEnergy
 from .errors import InputError
 from .materials import Material
@@ -149,6 +150,10 @@ class Model:
             self.energies.append(self.seam)
             self.sewing = Sewing(self.seams, self.seam, seams.sample_pair, seams.stiffness, sewing or SewingOptions(),
                                  self.dt)
+
+        # An elastic band along an opening, drawn in by the caller (garment/dress/drawstring.py).
+        self.drawstring = DrawstringEnergy(self.n_cp)
+        self.energies.append(self.drawstring)
 
         self.obstacles = list(obstacles)
         self.seam_contact = self.barrier = self.drive = self.stiffness = self.friction = None

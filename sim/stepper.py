@@ -36,6 +36,7 @@ def step(model: Model, state: State) -> StepStats:
             model.potential.refresh_constant()
         stats.extra["seam_samples_routed"] = float(sewing.energy.routed.sum())
     model.loads.set_time(t_next)
+    model.drawstring.set_time(t_next)
     targets = model.pin_targets(state.C, t_next)
     # Predictor C + dt V: the inertia target in dynamics, the secant (last increment)
     # predictor in quasi-statics (wrinkle 20x47: 41 -> 33 Newton iterations per load step).

@@ -19,12 +19,17 @@ TRUNK = (0.45, 0.72)
 LEVELS = 28
 
 
-def boundary_loops(X: np.ndarray, T: np.ndarray) -> list[np.ndarray]:
-    """Vertex loops of the open edges of the triangle mesh (X, T) (edges of one triangle)."""
+def open_edges(T: np.ndarray) -> np.ndarray:
+    """(E, 2) edges of the triangle mesh T used by one triangle only."""
     E = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
     edges, count = np.unique(E, axis=0, return_counts=True)
+    return edges[count == 1]
+
+
+def boundary_loops(X: np.ndarray, T: np.ndarray) -> list[np.ndarray]:
+    """Vertex loops of the open edges of the triangle mesh (X, T)."""
     nxt: dict[int, list[int]] = {}
-    for a, b in edges[count == 1]:
+    for a, b in open_edges(T):
         nxt.setdefault(int(a), []).append(int(b))
         nxt.setdefault(int(b), []).append(int(a))
     loops, seen = [], set()

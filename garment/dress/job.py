@@ -25,6 +25,9 @@ The defaults are one mechanism for every garment (docs/dressing.md):
 - layout: panels that cross each other or the shrunk body move apart first (layout.py);
 - at rest: the run ends when the garment is at rest (RMS control-point speed of a step below
   `rest_speed` over `rest_frames` frames, seams closed), or at `max_time`;
+- drawn in: once sewn, a top opening wider than the body's trunk anywhere (nothing could
+  hold it up) gets an elastic band, tightened to 0.9 x the body's girth where it sits while
+  gravity comes on (drawstring.py; the report's `drawstring`);
 - slid off: a garment whose mean height drops FALLEN below where it was placed stops as a
   `placement` failure (nothing on the body holds it up).
 """
@@ -45,6 +48,7 @@ from sim.newton import EXTRAPOLATE
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..scene.schema import key, rule, within
 from ..verify import frame_crossings, shared_vertices, stack_meshes
+from .drawstring import draw_in, garment_and_body
 from .frame import BodyFrame, pattern_up, read_body
 from .girth import loose_opening, trunk_centre
 from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
@@ -407,6 +411,8 @@ def _simulate(scene, o: DressOptions, outdir: Path, frame: BodyFrame, report: di
         phase["newton_iterations"] += st.newton_iterations
         clock[0] = now
         if t >= o.sew_time - 1e-9:
+            if "drawstring" not in report:  # sewn: an opening too wide to rest on is drawn in
+                report["drawstring"] = draw_in(sim, (t, t + o.gravity_ramp))
             if sim.dt != o.settle_dt:
                 sim.set_dt(o.settle_dt)  # sewn: longer steps to the rest shape (DressOptions.settle_dt)
         elif t >= grow_from - 1e-9 and sim.dt != o.grow_dt:
@@ -456,12 +462,11 @@ def _loose_opening(sim) -> str | None:
     """Why a garment that slid off could not stay on, when its top opening is wider than
     the body's trunk anywhere (garment/dress/girth.py): a sentence naming the opening's
     panels and both lengths, or None."""
-    body_pos = sim.obstacle_positions()
-    bodies = [(body_pos[m.name], m.faces) for m in sim.topologies() if m.kind != "cloth"]
+    _, body = garment_and_body(sim)
     cloth, X, T = _garment_mesh(sim)
-    if not cloth or not bodies:
+    if not cloth or body is None:
         return None
-    found = loose_opening(X, T, *stack_meshes(bodies))
+    found = loose_opening(X, T, *body)
     if found is None:
         return None
     loop, length, girth, height = found
