@@ -47,7 +47,7 @@ def draw_in(sim, window: tuple[float, float]) -> dict | None:
     found = loose_opening(X, T, *body)
     if found is None:
         return None
-    loop, length, widest, widest_at = found
+    loop, length, widest, _ = found
     z = float(X[loop, 2].mean())
     girth = trunk_girth(*body, z, trunk_centre(body[0])[:2]) or widest
     rows, names = _segments(cloth, label, loop)
@@ -57,7 +57,7 @@ def draw_in(sim, window: tuple[float, float]) -> dict | None:
     now = np.linalg.norm(G @ sim.C, axis=1)
     ratio = SNUG * girth / now.sum()
     sim.model.drawstring.draw(G, now, ratio * now, window)
-    return {"panels": names, "opening_cm": round(100 * length, 1), "trunk_widest_cm": round(100 * widest, 1),
+    return {"panels": names, "opening_cm": round(100 * length, 1), "trunk_below_cm": round(100 * widest, 1),
             "girth_at_opening_cm": round(100 * girth, 1), "height_m": round(z, 3),
             "band_cm": round(100 * SNUG * girth, 1), "segments": int(G.shape[0])}
 

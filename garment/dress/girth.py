@@ -99,24 +99,37 @@ def trunk_centre(body_V: np.ndarray) -> np.ndarray:
     return 0.5 * (trunk.min(0) + trunk.max(0))
 
 
-def widest_trunk(body_V: np.ndarray, body_F: np.ndarray) -> tuple[float, float] | None:
-    """(girth m, height m) of the trunk where it is widest (hips or chest), or None."""
+def widest_trunk(body_V: np.ndarray, body_F: np.ndarray, below: float | None = None) -> tuple[float, float] | None:
+    """(girth m, height m) of the trunk where it is widest (hips or chest), at or below
+    the height `below` when given, or None."""
     lo, hi = body_V[:, 2].min(), body_V[:, 2].max()
+    bottom, top = lo + TRUNK[0] * (hi - lo), lo + TRUNK[1] * (hi - lo)
+    top = top if below is None else min(top, below)
+    if top < bottom:
+        return None
     centre = trunk_centre(body_V)[:2]
     mesh = trimesh.Trimesh(body_V, body_F, process=False)
-    found = [(g, z) for z in np.linspace(lo + TRUNK[0] * (hi - lo), lo + TRUNK[1] * (hi - lo), LEVELS)
-             if (g := _girth(mesh, float(z), centre)) is not None]
+    found = [(g, z) for z in np.linspace(bottom, top, LEVELS) if (g := _girth(mesh, float(z), centre)) is not None]
     return max(found) if found else None
 
 
 def loose_opening(X: np.ndarray, T: np.ndarray, body_V: np.ndarray, body_F: np.ndarray):
-    """(loop, its length m, the trunk's widest girth m, at height m) when the garment's
-    (X, T) top opening is wider than the body's trunk anywhere (nothing can hold it up),
-    else None. Both in the simulator's frame (Z-up, m)."""
+    """(loop, its length m, the trunk's widest girth below it m, at height m) when the
+    garment's (X, T) top opening sits at the trunk's heights and is wider than the trunk
+    everywhere below it (nothing can hold it up), else None. An opening above the trunk
+    (a neckline, a collar's edge) rests on the shoulders and arms, whatever its length:
+    upper_garment_06's 151 cm neckline round its sleeves' tops. Both in the simulator's
+    frame (Z-up, m)."""
     loops = boundary_loops(X, T)
-    widest = widest_trunk(body_V, body_F)
-    if not loops or widest is None:
+    if not loops:
         return None
     top = max(loops, key=lambda loop: X[loop, 2].mean())
+    lo, hi = body_V[:, 2].min(), body_V[:, 2].max()
+    z = float(X[top, 2].mean())
+    if z > lo + TRUNK[1] * (hi - lo):
+        return None
+    widest = widest_trunk(body_V, body_F, below=z)
+    if widest is None:
+        return None
     length = loop_length(X, top)
     return (top, length, *widest) if length > widest[0] else None

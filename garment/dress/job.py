@@ -25,8 +25,8 @@ The defaults are one mechanism for every garment (docs/dressing.md):
 - layout: panels that cross each other or the shrunk body move apart first (layout.py);
 - at rest: the run ends when the garment is at rest (RMS control-point speed of a step below
   `rest_speed` over `rest_frames` frames, seams closed), or at `max_time`;
-- drawn in: once sewn, a top opening wider than the body's trunk anywhere (nothing could
-  hold it up) gets an elastic band, tightened to 0.9 x the body's girth where it sits while
+- drawn in: once sewn, a top opening at the trunk's heights wider than the trunk everywhere
+  below it (nothing could hold it up) gets an elastic band, tightened to 0.9 x the body's girth where it sits while
   gravity comes on (drawstring.py; the report's `drawstring`);
 - slid off: a garment whose mean height drops FALLEN below where it was placed stops as a
   `placement` failure (nothing on the body holds it up).

@@ -64,3 +64,17 @@ def test_an_opening_wider_than_the_trunk_anywhere_is_found():
     assert X[loop, 2].mean() == pytest.approx(1.0) and length == pytest.approx(polygon(0.25))
     assert girth < length
     assert loose_opening(*tube(0.15, 0.7, 1.0), V, F) is None  # 94 cm: the hips hold it
+
+
+def test_an_opening_above_the_trunk_rests_on_the_shoulders_however_wide():
+    V, F = body()
+    # 1.30 m is 76 % of the 1.72 m body: a neckline there hangs on shoulders and arms.
+    assert loose_opening(*tube(0.30, 1.0, 1.30), V, F) is None
+
+
+def test_only_the_trunk_below_an_opening_can_hold_it():
+    V, F = body()
+    # At 0.80 m the trunk below (from 0.77 m, 45 % of the height) is at most r = 0.165 m
+    # round, narrower than the widest (0.17 m at 0.85 m) above it.
+    found = loose_opening(*tube(0.167, 0.5, 0.80), V, F)
+    assert found is not None and found[2] < polygon(0.167) < polygon(0.17)
