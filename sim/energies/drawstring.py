@@ -89,35 +89,24 @@ class DrawstringEnergy(Energy):
     def add_hessian(self, C, data, project=True):
         if not self.active:
             return
-        d, length, on = self._stretch(C)
-        if not on.any():
+        H = self.hessian(C).tocoo()
+        if H.nnz == 0:
             return
-        H = self.hessian(C)
         free = self._pattern.free
-        dof = (3 * free[:, None] + np.arange(3)).ravel()
-        dof[np.repeat(free < 0, 3)] = -1
-        H = H.tocoo()
+        dof = np.where(np.repeat(free < 0, 3), -1, (3 * free[:, None] + np.arange(3)).ravel())
         keep = (dof[H.row] >= 0) & (dof[H.col] >= 0)
         n = self._pattern.n_dofs
         add_dof_matrix(self._pattern, sp.coo_matrix((H.data[keep], (dof[H.row[keep]], dof[H.col[keep]])), shape=(n, n)),
                        data)
 
     def hessian(self, C: np.ndarray) -> sp.csr_matrix:
-        """The (3 n_cp)^2 Hessian: sum_s (g_s g_s^T) (x) H_s over stretched segments."""
+        """The (3 n_cp)^2 Hessian: sum_s (g_s g_s^T) (x) H_s over the stretched segments,
+        as (G (x) I3)^T blockdiag(H_s) (G (x) I3)."""
         d, length, on = self._stretch(C)
         r, l, dn = self.rest[on], length[on], d[on] / length[on][:, None]
         k = self.stiffness / r
         Hs = (k * (1.0 - r / l))[:, None, None] * np.eye(3) + (k * r / l)[:, None, None] * dn[:, :, None] * dn[:, None, :]
-        G = self.G[np.flatnonzero(on)].tocsr()
-        rows, cols, vals = [], [], []
-        for s in range(G.shape[0]):
-            idx = G.indices[G.indptr[s]:G.indptr[s + 1]]
-            w = G.data[G.indptr[s]:G.indptr[s + 1]]
-            ii, jj = np.meshgrid(idx, idx, indexing="ij")
-            ww = np.outer(w, w)
-            # block (i, j) = w_i w_j H_s: scalar entry (3i + p, 3j + q)
-            rows.append((3 * ii[:, :, None, None] + np.arange(3)[:, None]).repeat(3, axis=3).ravel())
-            cols.append((3 * jj[:, :, None, None] + np.arange(3)[None, :]).repeat(3, axis=2).ravel())
-            vals.append((ww[:, :, None, None] * Hs[s]).ravel())
-        n = 3 * self.n_cp
-        return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+        S = len(r)
+        blocks = sp.bsr_matrix((Hs, np.arange(S), np.arange(S + 1)), shape=(3 * S, 3 * S))
+        Gx = sp.kron(self.G[np.flatnonzero(on)], sp.eye(3), format="csr")
+        return (Gx.T @ blocks @ Gx).tocsr()
