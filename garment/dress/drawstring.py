@@ -1,4 +1,4 @@
-"""A top opening wider than the body's trunk is drawn in with an elastic band.
+"""A top opening too wide to rest on is drawn in with an elastic band.
 
 Such a garment has nothing to rest on and slides off (skirt_06 of the corpus: its
 waistband is 157 cm round, `waistband.waist` = 1.86 x the body's waist, on a trunk at
@@ -7,8 +7,9 @@ GarmentCodeData holds them to the body (attachment springs on `lower_interface` 
 400 frames). Here the opening gets what a dressmaker would thread through it: an elastic
 band (sim/energies/drawstring.py) along its edge, cut SNUG x the body's girth where the
 opening sits and tightened while gravity comes on. It acts only where the garment could
-not otherwise stay on, found once the seams are sewn (the opening is then one loop of the
-welded garment mesh), and the report says so (`drawstring`).
+not otherwise stay on (an opening at the trunk's heights wider than the trunk everywhere
+below it, girth.loose_opening), found once the seams are sewn (the opening is then one
+loop of the welded garment mesh), and the report says so (`drawstring`).
 """
 
 from __future__ import annotations
@@ -35,8 +36,8 @@ def garment_and_body(sim):
 
 
 def draw_in(sim, window: tuple[float, float]) -> dict | None:
-    """Thread the band through the garment's top opening when that opening is wider than
-    the body's trunk; its rest length goes from the opening's length to SNUG x the body's
+    """Thread the band through the garment's top opening when nothing below it could hold
+    it up (girth.loose_opening); its rest length goes from the opening's length to SNUG x the body's
     girth at the opening's height over `window` (s). Returns the report entry, or None
     when the garment needs no band."""
     cloth, body = garment_and_body(sim)
