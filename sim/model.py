@@ -149,7 +149,7 @@ class Model:
         if self.seam is not None:
             self.energies.append(self.seam)
             self.sewing = Sewing(self.seams, self.seam, seams.sample_pair, seams.stiffness, sewing or SewingOptions(),
-                                 self.dt)
+                                 self.dt, self.C0)
 
         # An elastic band along an opening, drawn in by the caller (garment/dress/drawstring.py).
         self.drawstring = DrawstringEnergy(self.n_cp)

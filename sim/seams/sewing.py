@@ -60,7 +60,7 @@ class Sewing:
     stiffness: the ramp's end, N/m^2."""
 
     def __init__(self, seams: list[SeamSpec], energy: SeamEnergy, sample_pair: np.ndarray,
-                 stiffness: float, options: SewingOptions, dt: float):
+                 stiffness: float, options: SewingOptions, dt: float, C0: np.ndarray | None = None):
         self.seams = seams
         self.energy = energy
         self.sample_pair = sample_pair
@@ -70,6 +70,8 @@ class Sewing:
         self.start = np.cumsum([0] + counts)  # seam k's samples: start[k]:start[k + 1]
         self.faces = self._pleat_faces()
         self.junctions = _junctions(seams, self.start)
+        if C0 is not None:  # gathered seams wait like a pleat's face (_gather_waits)
+            self.faces += _gather_waits(seams, self.start, self.junctions, energy.samples, C0)
         if options.ramp > 0.0:
             energy.set_scale(self.scale(dt))  # the first step's
 
@@ -237,3 +239,40 @@ def _junctions(seams: list[SeamSpec], start: np.ndarray) -> list[np.ndarray]:
     order = np.argsort(inverse, kind="stable")
     groups = np.split(order, np.cumsum(counts)[:-1])
     return [g for g in groups if len(g) > 1]
+
+
+GATHER = 1.5  # a seam whose one side is this much longer than the other gathers it
+
+
+def _gather_waits(seams: list[SeamSpec], start: np.ndarray, junctions: list[np.ndarray], samples,
+                  C0: np.ndarray) -> list[tuple[np.ndarray, list[slice]]]:
+    """Per gathered seam (one side GATHER x or more longer than the other on the laid-out
+    panels C0): its samples, and the seams it waits for (as a pleat's face waits for its
+    tucks): those meeting it at a junction that join the gathered-on piece to any piece
+    but the gathered one, as a cuff's side seam under a sleeve gathered onto the cuff.
+    Pulled at once, the gathered cloth's corner hangs into the cuff's open slit and the
+    side seam closes on it (upper_garment_06's right cuff, docs/dressing.md stop 62)."""
+    a, b = samples.Na @ C0, samples.Nb @ C0
+    seam_of = np.repeat(np.arange(len(seams)), np.diff(start))
+
+    def length(x, k):
+        return float(np.linalg.norm(np.diff(x[start[k]:start[k + 1]], axis=0), axis=1).sum())
+
+    la = np.array([length(a, k) for k in range(len(seams))])
+    lb = np.array([length(b, k) for k in range(len(seams))])
+    gathered = (np.diff(start) >= 2) & (np.maximum(la, lb) >= GATHER * np.maximum(np.minimum(la, lb), 1e-9))
+    out = []
+    for k in np.flatnonzero(gathered):
+        s, lo, hi = seams[k], int(start[k]), int(start[k + 1])
+        long_piece, short_piece = (s.piece_a, s.piece_b) if la[k] > lb[k] else (s.piece_b, s.piece_a)
+        wait = set()
+        for g in junctions:
+            if lo not in g and hi - 1 not in g:
+                continue
+            for j in seam_of[g]:  # never on another gathered seam: both would wait to the end
+                pieces = {seams[j].piece_a, seams[j].piece_b}
+                if not gathered[j] and short_piece in pieces and long_piece not in pieces:
+                    wait.add(int(j))
+        if wait:
+            out.append((np.arange(lo, hi), [slice(int(start[j]), int(start[j + 1])) for j in sorted(wait)]))
+    return out
