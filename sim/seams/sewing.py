@@ -16,7 +16,11 @@ pair that cannot merge without cloth passing through cloth is blocked, and the s
 nearest to it pull with `held_fraction` of the stiffness. A seam sewn onto a folded
 pleat's face (a waistband) pulls only once the pleat's tucks are within `pleat_wait_gap`,
 or from `pleat_wait_end` on: pulled earlier, the other panel comes down into the fold and
-its layers hold a tuck open (docs/findings.md, "Folded pleats"). Once at full stiffness,
+its layers hold a tuck open (docs/findings.md, "Folded pleats"). A gathered seam (one side
+1.5x the other or more) waits the same way for the seams of the piece it is gathered onto
+that meet it at a corner (a sleeve gathered onto a cuff, for the cuff's side seam):
+pulled at once, the gathered cloth's corner hangs into the cuff's open slit and the side
+seam closes on it (`_gather_waits`). Once at full stiffness,
 seam multipliers close what a penalty leaves open (sim/seams/energy.py).
 """
 
