@@ -25,14 +25,11 @@ from .girth import loose_opening, open_edges, trunk_centre, trunk_girth
 SNUG = 0.9
 
 
-def garment_and_body(sim):
-    """The cloth pieces [(piece, V, F)] as they stand and the bodies stacked (V, F), or
-    None without a body."""
-    pos = sim.positions()
-    cloth = [(p, pos[p.name], p.topology.faces) for p in sim.model.pieces]
+def body_mesh(sim):
+    """The bodies as they stand, stacked (V, F), or None without one."""
     body_pos = sim.obstacle_positions()
     bodies = [(body_pos[m.name], m.faces) for m in sim.topologies() if m.kind != "cloth"]
-    return cloth, (stack_meshes(bodies) if bodies else None)
+    return stack_meshes(bodies) if bodies else None
 
 
 def draw_in(sim, window: tuple[float, float]) -> dict | None:
@@ -40,7 +37,9 @@ def draw_in(sim, window: tuple[float, float]) -> dict | None:
     it up (girth.loose_opening); its rest length goes from the opening's length to SNUG x the body's
     girth at the opening's height over `window` (s). Returns the report entry, or None
     when the garment needs no band."""
-    cloth, body = garment_and_body(sim)
+    body = body_mesh(sim)
+    pos = sim.positions()
+    cloth = [(p, pos[p.name], p.topology.faces) for p in sim.model.pieces]
     if not cloth or body is None:
         return None
     V, F = stack_meshes([(X, T) for _, X, T in cloth])

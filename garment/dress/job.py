@@ -48,7 +48,7 @@ from sim.newton import EXTRAPOLATE
 from ..io.bodies import from_scene_frame, to_scene_frame
 from ..scene.schema import key, rule, within
 from ..verify import frame_crossings, shared_vertices, stack_meshes
-from .drawstring import draw_in, garment_and_body
+from .drawstring import body_mesh, draw_in
 from .frame import BodyFrame, pattern_up, read_body
 from .girth import loose_opening, trunk_centre
 from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
@@ -462,7 +462,7 @@ def _loose_opening(sim) -> str | None:
     """Why a garment that slid off could not stay on, when its top opening is wider than
     the body's trunk anywhere (garment/dress/girth.py): a sentence naming the opening's
     panels and both lengths, or None."""
-    _, body = garment_and_body(sim)
+    body = body_mesh(sim)
     cloth, X, T = _garment_mesh(sim)
     if not cloth or body is None:
         return None
