@@ -106,5 +106,5 @@ def load_npz(path: str | os.PathLike, read):
         return read(arrays)
     except InputError:
         raise
-    except (KeyError, ValueError, TypeError, IndexError) as e:
+    except (KeyError, ValueError, TypeError, IndexError, OverflowError) as e:  # inf to int
         raise InputError(f"{path}: not a readable state file ({printable(e, 200)})") from None

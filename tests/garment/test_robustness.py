@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from garment.cli import main
-from sim.errors import SimulationError
+from sim.errors import InputError, SimulationError
 from garment.io import read_frame
 from garment.scene import loads_scene
 from sim.checkpoint import read_checkpoint, write_checkpoint
@@ -127,6 +127,12 @@ def test_checkpoint_round_trip(tmp_path):
     # A different scene (even one number) has a different hash; frame count and outputs do not count.
     assert scene_hash(loads_scene(CONTACT.replace("mu = 0.3", "mu = 0.2"))) != scene_hash(scene)
     assert scene_hash(loads_scene(CONTACT.replace("frames = 10", "frames = 99"))) == scene_hash(scene)
+    # A damaged field that numpy reads but int() cannot (inf) is an InputError naming the file.
+    bad = dict(np.load(path))
+    bad["threads"] = np.array([np.inf, 1.0])
+    np.savez(tmp_path / "bad.npz", **bad)
+    with pytest.raises(InputError, match="bad.npz: not a readable checkpoint"):
+        read_checkpoint(tmp_path / "bad.npz")
 
 
 def failing_above(sim, dt_max):
