@@ -46,6 +46,7 @@ class Layout:
     rounds: int = 0
     lifted: dict[str, float] = field(default_factory=dict)  # lift_over_body, m
     raise_arms: float = 0.0  # arms_out_of_the_way, degrees
+    out_of_paths: dict[str, float] = field(default_factory=dict)  # out_of_seam_paths, m
     below_resolution: list[str] = field(default_factory=list)  # seams conform dropped (conform/pipeline.py)
 
 
@@ -313,6 +314,140 @@ def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panel
             for n in move:
                 index[n].world = start[n]
     return lifted
+
+
+def seams_through_cloth(patches, seams, panels=None, surface: _Surface | None = None) -> dict[tuple[str, str], int]:
+    """Seams whose closing paths (straight from each sample to its partner) pass through
+    the cloth of a panel other than the seam's own two: {(seam name, that panel): how many
+    paths}. Pulled shut, such a seam closes round that cloth and pins it (jumpsuit_00's
+    sleeve, laid with its underarm between the torso's front and back, caught in the side
+    seam). panels: each patch's pattern panel (default its own name)."""
+    panels = panels or [p.name for p in patches]
+    index = {p.name: k for k, p in enumerate(patches)}
+    names = sorted(set(panels))
+    group = np.array([names.index(g) for g in panels])
+    surface = surface or _Surface.of(patches)
+    x, face_panel = surface.vertices(patches), group[surface.owner[surface.faces[:, 0]]]
+    found: dict[tuple[str, str], int] = {}
+    for s in seams:
+        if s.patch_a not in index or s.patch_b not in index:
+            continue
+        ka, kb = index[s.patch_a], index[s.patch_b]
+        a, b = points_at(patches[ka].world, s.uv_a), points_at(patches[kb].world, s.uv_b)
+        far = np.linalg.norm(b - a, axis=1) > CLEARANCE
+        if not far.any():
+            continue
+        pts = np.concatenate([np.stack([a[far], b[far]], axis=1).reshape(-1, 3), x])
+        pairs = crossing_pairs(pts, np.arange(2 * int(far.sum())).reshape(-1, 2), surface.faces + 2 * int(far.sum()))
+        hit = face_panel[pairs[:, 1]]
+        hit_path = pairs[:, 0]
+        for g in set(hit.tolist()) - {group[ka], group[kb]}:
+            found[(s.name, names[g])] = len(np.unique(hit_path[hit == g]))
+    return found
+
+
+OUT_STEP = 0.02  # m, each round moves a panel caught in a seam's path by this
+OUT_MOST = 0.3  # m, in all: a sleeve laid half inside the torso needs its width
+CAUGHT = 3  # paths: one or two at a seam's end pass a neighbour's corner where panels meet
+
+
+def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panels=None) -> dict[str, float]:
+    """Move the panels caught in another seam's closing paths (seams_through_cloth, CAUGHT
+    paths or more; panels caught by one seam move together) rigidly out of them: along
+    the axis direction (up, down or sideways) or straight away from the body's vertical
+    axis that frees them with the least move, a multiple of OUT_STEP up to OUT_MOST, and
+    crosses nothing new (the body, other panels, other seams' paths). A sleeve laid with
+    its underarm between the torso's front and back moves out sideways. Panels no move
+    frees stay where they are (`Sewing.screened` holds those seams during the ramp).
+    Returns each moved patch's offset (m)."""
+    panels = panels or [p.name for p in patches]
+    surface = _Surface.of(patches)
+
+    def caught() -> set[tuple[str, str]]:  # (seam, panel caught in its paths)
+        return {k for k, n in seams_through_cloth(patches, seams, panels, surface).items() if n >= CAUGHT}
+
+    found = caught()
+    if not found:
+        return {}
+    index = {p.name: p for p in patches}
+    members: dict[str, list[str]] = {}
+    for p, panel in zip(patches, panels):
+        members.setdefault(panel, []).append(p.name)
+    group_of = dict(zip((p.name for p in patches), panels))
+    links = [(group_of[s.patch_a], group_of[s.patch_b]) for s in seams
+             if s.patch_a in group_of and s.patch_b in group_of]
+    seam_panels = {s.name: {group_of.get(s.patch_a), group_of.get(s.patch_b)} for s in seams}
+    # Panels caught by a common seam move together, with what hangs from them (not
+    # through the panels of the seams that catch them).
+    groups = _merged([{panel for s, panel in found if s == seam} for seam in sorted({s for s, _ in found})])
+    groups = _merged([_hanging(g, links, set().union(*(seam_panels[s] for s, panel in found if panel in g)))
+                      for g in groups])
+    axis = np.asarray(body_V, float)[:, :2].mean(axis=0)
+    before = {k: len(v) for k, v in crossings(patches, body_V, body_F, surface).items()}
+    moved: dict[str, float] = {}
+    for group in groups:
+        names = [n for panel in sorted(group) for n in members[panel]]
+        start = {n: index[n].world.copy() for n in names}
+        middle = np.concatenate([start[n].reshape(-1, 3) for n in names]).mean(axis=0)
+        radial = np.r_[middle[:2] - axis, 0.0]
+        directions = [sign * np.eye(3)[i] for i in range(3) for sign in (1.0, -1.0)]
+        if np.linalg.norm(radial) > 1e-6:
+            directions.append(radial / np.linalg.norm(radial))
+        best = _least_move(index, start, directions, group, found, caught,
+                           lambda: any(len(v) > before.get(k, 0)
+                                       for k, v in crossings(patches, body_V, body_F, surface).items()))
+        for n in names:
+            index[n].world = start[n] + best
+        if best.any():
+            moved.update({n: float(np.linalg.norm(best)) for n in names})
+    return moved
+
+
+def _merged(sets: list[set[str]]) -> list[set[str]]:
+    """The sets, those that share a member joined."""
+    out: list[set[str]] = []
+    for g in sets:
+        g = set(g)
+        for other in [h for h in out if h & g]:
+            out.remove(other)
+            g |= other
+        out.append(g)
+    return out
+
+
+def _hanging(panels: set[str], links: list[tuple[str, str]], holding: set[str]) -> set[str]:
+    """`panels` and every panel sewn to them, through any chain of seams (links: pairs of
+    panels) that does not pass through the `holding` panels: a sleeve with its cuff."""
+    out, grew = set(panels), True
+    while grew:
+        grew = False
+        for a, b in links:
+            for x, y in ((a, b), (b, a)):
+                if x in out and y not in out and y not in holding:
+                    out.add(y)
+                    grew = True
+    return out
+
+
+def _least_move(index, start, directions, group, found, caught, crosses) -> np.ndarray:
+    """Of the moves k OUT_STEP d (d in directions, up to OUT_MOST) after which nothing is
+    caught that was not (`found`, `caught()`) and `crosses()` is False, the shortest of
+    those that leave the fewest seams catching a panel of `group`; zero when no move
+    frees any."""
+    def catching(now) -> int:
+        return len({seam for seam, panel in now if panel in group})
+
+    best, fewest = np.zeros(3), catching(found)
+    for k in range(1, int(round(OUT_MOST / OUT_STEP)) + 1):
+        for d in directions:
+            for n, w in start.items():
+                index[n].world = w + k * OUT_STEP * d
+            now = caught()
+            if catching(now) < fewest and not now - found and not crosses():
+                best, fewest = k * OUT_STEP * d, catching(now)
+                if fewest == 0:
+                    return best
+    return best
 
 
 ARM_ANGLES = (20.0, 40.0, 60.0)  # degrees, tried in turn

@@ -73,7 +73,8 @@ class Sewing:
         counts = [len(s.uv_a) for s in seams]
         self.start = np.cumsum([0] + counts)  # seam k's samples: start[k]:start[k + 1]
         self.faces = self._pleat_faces()
-        self.junctions = _junctions(seams, self.start)
+        sides = None if C0 is None else (energy.samples.Na @ C0, energy.samples.Nb @ C0)
+        self.junctions = _junctions(seams, self.start, sides)
         if C0 is not None:  # gathered seams wait like a pleat's face (_gather_waits)
             self.faces += _gather_waits(seams, self.start, self.junctions, energy.samples, C0)
         if options.ramp > 0.0:
@@ -220,9 +221,15 @@ class Sewing:
         return waiting
 
 
-def _junctions(seams: list[SeamSpec], start: np.ndarray) -> list[np.ndarray]:
+def _junctions(seams: list[SeamSpec], start: np.ndarray,
+               sides: tuple[np.ndarray, np.ndarray] | None = None) -> list[np.ndarray]:
     """Groups (arrays of sample indices, two or more) of samples that share a side point:
-    the same parameters on the same piece, where seams meet at a panel corner."""
+    the same parameters on the same piece, where seams meet at a panel corner. With the
+    sides' laid-out positions (a, b: (S, 3) each), seam ends on one piece less than JOIN
+    apart meet too: conforming drops a seam shorter than the boundary fit
+    (conform/seams.py, below_resolution), and the seams on either side of it then end
+    about its length apart, not at one point (jumpsuit_00's side dart and armhole meet
+    across a 1 mm stitch)."""
     owner: dict[tuple, int] = {}
     parent = np.arange(start[-1])
 
@@ -232,18 +239,28 @@ def _junctions(seams: list[SeamSpec], start: np.ndarray) -> list[np.ndarray]:
             i = parent[i]
         return i
 
+    ends = []  # (piece, sample, position) of each seam side's two ends
     for k, s in enumerate(seams):
-        for piece, uv in ((s.piece_a, s.uv_a), (s.piece_b, s.uv_b)):
+        for side, (piece, uv) in enumerate(((s.piece_a, s.uv_a), (s.piece_b, s.uv_b))):
             for j, key in enumerate(map(tuple, np.round(np.asarray(uv, float), 9))):
                 i = start[k] + j
                 other = owner.setdefault((piece, key), i)
                 parent[root(i)] = root(other)
+            if sides is not None and start[k + 1] > start[k]:
+                for i in (start[k], start[k + 1] - 1):
+                    ends.append((piece, i, sides[side][i]))
+    for n, (piece, i, x) in enumerate(ends):
+        for piece_j, j, y in ends[n + 1:]:
+            if piece_j == piece and np.linalg.norm(x - y) < JOIN:
+                parent[root(i)] = root(j)
     roots = np.array([root(i) for i in range(len(parent))], np.int64)
     _, inverse, counts = np.unique(roots, return_inverse=True, return_counts=True)
     order = np.argsort(inverse, kind="stable")
     groups = np.split(order, np.cumsum(counts)[:-1])
     return [g for g in groups if len(g) > 1]
 
+
+JOIN = 3e-3  # m: seam ends on one piece this close at layout meet at a corner (_junctions)
 
 GATHER = 1.5  # a seam whose one side is this much longer than the other gathers it
 

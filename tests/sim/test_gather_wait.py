@@ -56,3 +56,30 @@ def test_an_even_seam_waits_for_nothing():
     C0[:3, 0] *= 0.4 / 0.45  # 40 onto 30 cm: eased, not gathered
     C0[9:12, 0] *= 0.4 / 0.45
     assert _gather_waits(seams, start, _junctions(seams, start), samples, C0) == []
+
+
+def test_seam_ends_a_dropped_stitch_apart_meet_at_a_corner():
+    """A sleeve gathered onto a torso's armhole ends 1 mm (laid out) from where the torso's
+    side seam ends: conforming dropped the 1 mm stitch between them. The two ends meet, so
+    the gather waits for the side seam; 5 mm apart, they are separate corners."""
+    seams = [
+        SeamSpec("sleeve", line(0, 1), "torso_f", line(0, 1), "armhole"),
+        SeamSpec("torso_f", line(1.01, 2), "torso_b", line(0, 1), "side"),
+    ]
+    start = np.array([0, 3, 6])
+
+    def laid_out(apart: float):
+        a = np.r_[np.c_[np.linspace(0, 0.5, 3), np.zeros((3, 2))],  # sleeve: 50 cm
+                  np.c_[np.linspace(0.2 + apart, 0.4, 3), np.zeros((3, 2))]]  # torso_f, side
+        b = np.r_[np.c_[np.linspace(0, 0.2, 3), np.zeros((3, 2))],  # torso_f: armhole 20 cm
+                  np.c_[np.linspace(0, 0.2, 3), np.ones((3, 2))]]  # torso_b
+        samples = SimpleNamespace(Na=sp.eye(6, 12, format="csr"), Nb=sp.eye(6, 12, k=6, format="csr"))
+        return (a, b), samples, np.r_[a, b]
+
+    assert _junctions(seams, start) == []  # different parameters: no shared point
+    sides, samples, C0 = laid_out(1e-3)
+    groups = _junctions(seams, start, sides)
+    assert [sorted(g) for g in groups] == [[2, 3]]  # the armhole's end and the side seam's start
+    assert [(list(s), w) for s, w in _gather_waits(seams, start, groups, samples, C0)] == [([0, 1, 2], [slice(3, 6)])]
+    sides, samples, C0 = laid_out(5e-3)
+    assert _junctions(seams, start, sides) == []

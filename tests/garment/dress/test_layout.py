@@ -179,3 +179,37 @@ def test_inside_holds_far_from_the_surface_and_on_an_open_mesh():
     points = np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.3], [0.12, 0.0, 0.0], [0.0, -0.4, 0.1], [0.0, 0.0, 0.8]])
     assert body.inside(points).tolist() == [True, True, False, False, False]
     assert body.winding(points[:1])[0] == pytest.approx(1.0, abs=0.1)
+
+
+def test_a_sleeve_caught_in_the_side_seam_moves_out_with_its_cuff():
+    """A sleeve laid across the torso's side seam (between the front and back panels)
+    would be sewn into it. It moves out sideways by the least 2 cm steps that free every
+    path of the seam, and its cuff, sewn to it, comes along; the torso stays."""
+    from garment.dress.layout import OUT_STEP, out_of_seam_paths, seams_through_cloth
+    from sim.seams.spec import PatchSeam
+
+    body = torso()
+    V, F = np.asarray(body.vertices), np.asarray(body.faces, np.int32)
+    front = Patch.rectangle("front", (0.5, 0.4), (8, 7), origin=(-0.25, -0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    back = Patch.rectangle("back", (0.5, 0.4), (8, 7), origin=(-0.25, 0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    # The sleeve in the plane y = 0 from x = 0.2 m: the side seam's paths at x = 0.25 m cross it.
+    sleeve = Patch.rectangle("sleeve", (0.3, 0.2), (7, 5), origin=(0.2, 0.0, 1.1), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    cuff = Patch.rectangle("cuff", (0.05, 0.2), (4, 5), origin=(0.52, 0.0, 1.1), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+
+    def edge(p, u, k=9):  # k parameter samples up the patch's side at parameter u
+        return np.c_[np.full(k, u), np.linspace(0, p.shape[1] - 2, k)]
+
+    seams = [PatchSeam("side", "front", "back", edge(front, 6.0), edge(back, 6.0), [], []),
+             PatchSeam("cuff", "sleeve", "cuff", edge(sleeve, 5.0, 5), edge(cuff, 0.0, 5), [], [])]
+    patches = [front, back, sleeve, cuff]
+    before = {p.name: p.world.copy() for p in patches}
+    caught = seams_through_cloth(patches, seams)
+    assert set(caught) == {("side", "sleeve")} and caught[("side", "sleeve")] >= 3
+    moved = out_of_seam_paths(patches, seams, V, F)
+    # 4 cm leaves the sleeve's inner edge at 0.24 m, still caught; 6 cm frees it.
+    assert moved == pytest.approx({"sleeve": 3 * OUT_STEP, "cuff": 3 * OUT_STEP})
+    np.testing.assert_allclose(sleeve.world - before["sleeve"], np.broadcast_to([0.06, 0, 0], sleeve.world.shape))
+    np.testing.assert_allclose(cuff.world - before["cuff"], np.broadcast_to([0.06, 0, 0], cuff.world.shape))
+    assert all(np.array_equal(p.world, before[p.name]) for p in (front, back))
+    assert seams_through_cloth(patches, seams) == {}
+    assert independent_pairs(patches, body) == 0
