@@ -213,3 +213,40 @@ def test_a_sleeve_caught_in_the_side_seam_moves_out_with_its_cuff():
     assert all(np.array_equal(p.world, before[p.name]) for p in (front, back))
     assert seams_through_cloth(patches, seams) == {}
     assert independent_pairs(patches, body) == 0
+
+
+def test_a_skirt_round_the_body_caught_in_the_side_seams_stays():
+    """A flared skirt laid flat reaches into the bodice's side seams with both sides, but
+    round the body's axis its own side seams wrap it out of their paths as they close; no
+    rigid move frees it without taking it off its waist seam, so it is left where it is
+    (dress_04's skirt, moved 22-24 cm, slid off or stayed 3.8 mm open)."""
+    from garment.dress.layout import out_of_seam_paths, seams_through_cloth
+    from sim.seams.spec import PatchSeam
+
+    body = torso()
+    V, F = np.asarray(body.vertices), np.asarray(body.faces, np.int32)
+    front = Patch.rectangle("front", (0.5, 0.4), (8, 7), origin=(-0.25, -0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    back = Patch.rectangle("back", (0.5, 0.4), (8, 7), origin=(-0.25, 0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    # A skirt's front and back, 0.8 m wide, in the planes y = -+0.2 (in front of and behind
+    # the body), their tops 10 cm up into the bodice: both side seams' paths, at x = +-0.25
+    # m, cross both.
+    skirt = [Patch.rectangle(name, (0.8, 0.5), (9, 6), origin=(-0.4, y, 0.6), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+             for name, y in (("skirt_front", -0.2), ("skirt_back", 0.2))]
+
+    def edge(p, u, k=9):
+        return np.c_[np.full(k, u), np.linspace(0, p.shape[1] - 2, k)]
+
+    def waist(name, bodice):  # the skirt's top middle to the bodice's bottom
+        return PatchSeam(name, f"skirt_{bodice}", bodice, np.c_[np.linspace(2, 5, 5), np.full(5, 4.0)],
+                         np.c_[np.linspace(0, 6, 5), np.zeros(5)], [], [])
+
+    seams = [PatchSeam("left", "front", "back", edge(front, 6.0), edge(back, 6.0), [], []),
+             PatchSeam("right", "front", "back", edge(front, 0.0), edge(back, 0.0), [], []),
+             waist("waist_front", "front"), waist("waist_back", "back")]
+    patches = [front, back, *skirt]
+    before = [p.world.copy() for p in skirt]
+    caught = {k for k, n in seams_through_cloth(patches, seams).items() if n >= 3}
+    assert caught == {(side, p.name) for side in ("left", "right") for p in skirt}
+    assert out_of_seam_paths(patches, seams, V, F) == {}
+    for p, w in zip(skirt, before):
+        np.testing.assert_array_equal(p.world, w)
