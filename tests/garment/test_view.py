@@ -50,12 +50,18 @@ def free_ports(n: int) -> list[int]:
     return ports
 
 
+def _ctrl_c_stops() -> None:
+    """In the child: SIGINT as at a terminal. A shell starts background jobs (pytest run
+    with `&`) with SIGINT ignored, and Python keeps an ignored SIGINT ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def start_view(rrds, web: int, grpc: int) -> tuple[subprocess.Popen, str]:
     """`garment view` in a subprocess; returns it and the URL it printed."""
     env = dict(os.environ, NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", ".cache/numba"))
     proc = subprocess.Popen([sys.executable, "-m", "garment.cli", "view", *map(str, rrds), "--port", str(web),
                              "--grpc-port", str(grpc)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env, cwd=ROOT)
+                            text=True, env=env, cwd=ROOT, preexec_fn=_ctrl_c_stops)
     url = proc.stdout.readline().strip()  # printed once serving; EOF if it failed
     assert url, proc.communicate(timeout=30)[1]
     return proc, url
@@ -63,7 +69,11 @@ def start_view(rrds, web: int, grpc: int) -> tuple[subprocess.Popen, str]:
 
 def stop(proc: subprocess.Popen, sig: int) -> str:
     proc.send_signal(sig)
-    _, err = proc.communicate(timeout=30)
+    try:
+        _, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()  # not left serving after the test
+        raise
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "stopped serving" in err
     return err
