@@ -326,31 +326,30 @@ def seams_through_cloth(patches, seams, panels=None, surface: _Surface | None = 
     move of these panels can change (their seams' paths, and any path through them)."""
     panels = panels or [p.name for p in patches]
     index = {p.name: k for k, p in enumerate(patches)}
-    panel_of = dict(zip(index, panels))
     names = sorted(set(panels))
     group = np.array([names.index(g) for g in panels])
     surface = surface or _Surface.of(patches)
     x, face_panel = surface.vertices(patches), group[surface.owner[surface.faces[:, 0]]]
-    ends, owner = [], []  # every seam's far paths at once: one broad phase, not one per seam
+    ends, owner, sides = [], [], {}  # every seam's far paths at once: one broad phase, not one per seam
     for k, s in enumerate(seams):
         if s.patch_a not in index or s.patch_b not in index:
             continue
-        a = points_at(patches[index[s.patch_a]].world, s.uv_a)
-        b = points_at(patches[index[s.patch_b]].world, s.uv_b)
+        ka, kb = index[s.patch_a], index[s.patch_b]
+        sides[k] = {group[ka], group[kb]}
+        a, b = points_at(patches[ka].world, s.uv_a), points_at(patches[kb].world, s.uv_b)
         far = np.linalg.norm(b - a, axis=1) > CLEARANCE
         ends.append(np.stack([a[far], b[far]], axis=1).reshape(-1, 3))
         owner.append(np.full(int(far.sum()), k))
     if not ends or not sum(map(len, owner)):
         return {}
     ends, owner = np.concatenate(ends), np.concatenate(owner)
-    n, faces = len(ends), surface.faces + len(ends)
-    paths = np.arange(n).reshape(-1, 2)
+    X, faces, paths = np.concatenate([ends, x]), surface.faces + len(ends), np.arange(len(ends)).reshape(-1, 2)
     if moving is None:
-        pairs = crossing_pairs(np.concatenate([ends, x]), paths, faces)
+        pairs = crossing_pairs(X, paths, faces)
     else:  # the moving panels' seams through any cloth, the others' through the moving cloth
-        X = np.concatenate([ends, x])
-        mine = np.isin(owner, [k for k, s in enumerate(seams) if {panel_of.get(s.patch_a), panel_of.get(s.patch_b)} & moving])
-        theirs = np.flatnonzero(np.isin(face_panel, [names.index(m) for m in moving]))
+        moved = {names.index(m) for m in moving}
+        mine = np.isin(owner, [k for k, g in sides.items() if g & moved])
+        theirs = np.flatnonzero(np.isin(face_panel, list(moved)))
         ours, others = crossing_pairs(X, paths[mine], faces), crossing_pairs(X, paths[~mine], faces[theirs])
         ours[:, 0], others[:, 0] = np.flatnonzero(mine)[ours[:, 0]], np.flatnonzero(~mine)[others[:, 0]]
         others[:, 1] = theirs[others[:, 1]]
@@ -358,9 +357,8 @@ def seams_through_cloth(patches, seams, panels=None, surface: _Surface | None = 
     path, hit = pairs[:, 0], face_panel[pairs[:, 1]]
     found: dict[tuple[str, str], int] = {}
     for k, g in set(zip(owner[path].tolist(), hit.tolist())):
-        s = seams[k]
-        if g not in (group[index[s.patch_a]], group[index[s.patch_b]]):
-            found[(s.name, names[g])] = len(np.unique(path[(owner[path] == k) & (hit == g)]))
+        if g not in sides[k]:
+            found[(seams[k].name, names[g])] = len(np.unique(path[(owner[path] == k) & (hit == g)]))
     return found
 
 
@@ -428,7 +426,9 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
             # down 24 or 22 cm diagonally, slid off or stayed 3.8 mm open).
             continue
         radial = np.r_[points[:, :2].mean(axis=0) - axis, 0.0]
-        directions = list(DIRECTIONS) + [radial / np.linalg.norm(radial)]
+        directions = list(DIRECTIONS)
+        if np.linalg.norm(radial) > 1e-6:  # a panel flat in a plane through the axis has none
+            directions.append(radial / np.linalg.norm(radial))
         best = _least_move(index, start, directions, group, found, lambda: caught(group), crosses)
         for n in names:
             index[n].world = start[n] + best
