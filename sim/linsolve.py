@@ -22,10 +22,13 @@ from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
 from . import supernodal
 
 # CHOLMOD's supernodal factorization spends its time in dense BLAS on the fronts. BLAS
-# runs on one thread by default (sim/threads.py: small systems lose more to hand-offs
-# with numba than they gain); large ones gain from more. Merged dress Hessian, 2 cores,
-# analysis + factorization: 61K rows 1.23 -> 0.99 s with 2 threads, 17K rows no gain.
-PARALLEL_ROWS = 30_000
+# runs on one thread by default (sim/threads.py: numba's kernels and BLAS would compete
+# for the cores), and only a factorization, where numba is idle, gets more. Measured on
+# 2 cores with the relaxed supernodes (stop 66): merged dress_04 Hessian (20K rows)
+# 210 -> 130 ms a refactorization; seeded hanging sheet, whole Newton iterations,
+# 75^2 (17K) 251 -> 172 ms, 60^2 (11K) 135 -> 88 ms, 45^2 (6K) 70 -> 48 ms, 30^2 (2.7K)
+# 21 -> 23 ms (below this threshold one thread). Merged 61K dress: 1.23 -> 0.99 s.
+PARALLEL_ROWS = 5_000
 LARGE_THREADS = int(os.environ.get("GARMENT_CHOLMOD_THREADS", min(2, os.cpu_count() or 1)))
 
 
