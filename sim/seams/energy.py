@@ -47,6 +47,7 @@ from ..energies.quadratic import QuadraticEnergy
 
 LEVEL_GAP = 0.5e-3  # m: a gap that stopped shrinking above this still gets pushed ...
 LEVEL_PUSHES = 3  # ... this many times (at most this x max_step more force), no more
+HELPED = 0.97  # a levelled gap that shrank below this fraction since the last push gave way to it
 
 
 @dataclass
@@ -165,7 +166,9 @@ class SeamEnergy(QuadraticEnergy):
         shrinking = gaps < 0.9 * self.last_gaps
         level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP) & (self.level_pushes < LEVEL_PUSHES)
         closing = (shrinking | level) & self.active & ~self.routed
-        self.level_pushes[closing & level] += 1
+        # Only a push the gap did not answer counts against the cap: where a gap still
+        # gives way (by HELPED a step), it is pushed on until it is under LEVEL_GAP.
+        self.level_pushes[closing & level & (gaps > HELPED * self.last_gaps)] += 1
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]
