@@ -26,7 +26,8 @@ contacts at 36 nm), while a gap that merely levelled off above 1 mm (jumpsuit_04
 stitch48 at 1.09 mm) needs a few more pushes to close, and pushing every step kept
 jumpsuit_02 moving until 3.3 s instead of 1.2. jumpsuit_02's centre-back waist, where four
 seams meet, spent its three pushes while each still closed its gap by 5-10 % and came to
-rest 0.92-1.02 mm open; with answered pushes free it rests at 0.77 mm. And one update adds at most `max_step` to a
+rest 0.92-1.02 mm open; with answered pushes free, 0.77-0.94 mm (two runs, stop 66).
+And one update adds at most `max_step` to a
 multiplier (the simulator: twice what the cloth carries at 100 % strain, 2 E h): the
 first update (lambda = k g everywhere at once) would otherwise double the pull on every
 seam still held open by contact or by a patch too coarse to follow it (dress_knife at the
