@@ -426,9 +426,10 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
             # down 24 or 22 cm diagonally, slid off or stayed 3.8 mm open).
             continue
         radial = np.r_[points[:, :2].mean(axis=0) - axis, 0.0]
+        length = np.linalg.norm(radial)
         directions = list(DIRECTIONS)
-        if np.linalg.norm(radial) > 1e-6:  # a panel flat in a plane through the axis has none
-            directions.append(radial / np.linalg.norm(radial))
+        if length > 1e-6:  # a panel flat in a plane through the axis has none
+            directions.append(radial / length)
         best = _least_move(index, start, directions, group, found, lambda: caught(group), crosses)
         for n in names:
             index[n].world = start[n] + best

@@ -26,13 +26,13 @@ contacts at 36 nm), while a gap that merely levelled off above 1 mm (jumpsuit_04
 stitch48 at 1.09 mm) needs a few more pushes to close, and pushing every step kept
 jumpsuit_02 moving until 3.3 s instead of 1.2. jumpsuit_02's centre-back waist, where four
 seams meet, spent its three pushes while each still closed its gap by 5-10 % and came to
-rest 0.92-1.02 mm open; with answered pushes free, 0.77-0.94 mm (two runs, stop 66).
-And one update adds at most `max_step` to a
-multiplier (the simulator: twice what the cloth carries at 100 % strain, 2 E h): the
-first update (lambda = k g everywhere at once) would otherwise double the pull on every
-seam still held open by contact or by a patch too coarse to follow it (dress_knife at the
-end of its sewing ramp: 843 samples at 6-20 kN/m, up to 30x E h, and Newton at its cap
-down to dt / 8); later updates keep adding while the gap keeps shrinking.
+rest 0.92-1.02 mm open; with answered pushes free, 0.77-0.94 mm (two runs, stop 66). And
+one update adds at most `max_step` to a multiplier (the simulator: twice what the cloth
+carries at 100 % strain, 2 E h): the first update (lambda = k g everywhere at once)
+would otherwise double the pull on every seam still held open by contact or by a patch
+too coarse to follow it (dress_knife at the end of its sewing ramp: 843 samples at 6-20
+kN/m, up to 30x E h, and Newton at its cap down to dt / 8); later updates keep adding
+while the gap keeps shrinking.
 
 A sample whose straight path passes through a body pulls each side to a waypoint p_s
 instead (sim/seams/routes.py): k/2 w_s (|S_a - p_s|^2 + |S_b - p_s|^2), still quadratic.
@@ -170,8 +170,8 @@ class SeamEnergy(QuadraticEnergy):
         shrinking = gaps < 0.9 * self.last_gaps
         level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP) & (self.level_pushes < LEVEL_PUSHES)
         closing = (shrinking | level) & self.active & ~self.routed
-        # Only a push the gap did not answer counts against the cap: where a gap still
-        # gives way (by HELPED a step), it is pushed on until it is under LEVEL_GAP.
+        # Only a push the gap did not answer counts against the cap: a gap that still
+        # gives way (below HELPED x the last one) is pushed on until it is under LEVEL_GAP.
         self.level_pushes[closing & level & (gaps > HELPED * self.last_gaps)] += 1
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)

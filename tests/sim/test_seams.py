@@ -248,7 +248,6 @@ def test_multipliers_grow_while_the_gap_shrinks_then_a_few_times_more_by_at_most
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 * (1 + LEVEL_PUSHES) + 1.5e4, rtol=1e-9)
 
 
-
 def test_a_levelled_gap_that_still_gives_way_is_pushed_on_without_spending_its_pushes():
     """jumpsuit_02's waist junction: each push closed the gap by 5-10 %, and the cap, spent
     on pushes that worked, left it 1 mm open. Only a push the gap does not answer counts."""
@@ -260,6 +259,7 @@ def test_a_levelled_gap_that_still_gives_way_is_pushed_on_without_spending_its_p
     seam.update_multipliers(C)
     half = C.shape[0] // 2
     gap = 0.02
+    assert 0.95 < HELPED  # 5 % closer is a push answered
     for n in range(2 * LEVEL_PUSHES):  # levelled (not 10 % closer), but 5 % closer each time
         gap *= 0.95
         closer = C.copy()
@@ -268,13 +268,13 @@ def test_a_levelled_gap_that_still_gives_way_is_pushed_on_without_spending_its_p
         seam.update_multipliers(closer)
         assert np.abs(seam.multipliers).max() > before  # pushed ...
         assert seam.level_pushes.max() == 0  # ... for free
-    assert 0.95 < HELPED
     for n in range(1, LEVEL_PUSHES + 2):  # the same gap again: a push it did not answer
         seam.update_multipliers(closer)
         assert seam.level_pushes.min() == min(n, LEVEL_PUSHES)
     before = seam.multipliers.copy()
     seam.update_multipliers(closer)  # spent: no more
     assert np.array_equal(seam.multipliers, before)
+
 
 def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
     """Sheets a (z = +h) and b (z = -h) with a seam joining their x = 0.1 edges, and a third
