@@ -325,6 +325,7 @@ class Model:
             state.seam_multipliers = self.seam.multipliers.copy()
             state.seam_gaps = self.seam.last_gaps.copy()
             state.seam_level_pushes = self.seam.level_pushes.copy()
+            state.seam_pushed_gaps = self.seam.pushed_gaps.copy()
             if self.seam_contact is not None:
                 state.seam_pairs = self.seam_contact.state.copy()
             if state.pleat_faces is None:
@@ -353,6 +354,8 @@ class Model:
                 self.seam.last_gaps = np.array(state.seam_gaps, float)
             if state.seam_level_pushes is not None:
                 self.seam.level_pushes = np.array(state.seam_level_pushes, np.int64)
+            if state.seam_pushed_gaps is not None:
+                self.seam.pushed_gaps = np.array(state.seam_pushed_gaps, float)
         if self.sewing is not None and state.pleat_faces is None:
             state.pleat_faces = np.zeros(len(self.sewing.faces), bool)
         if state.seam_pairs is not None:  # also back to fewer merged pairs (a retried step)

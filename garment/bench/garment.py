@@ -157,6 +157,7 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
     state.C, state.V = np.concatenate(C), np.concatenate(V)
     # Other samples and seam vertices at the finer spans: the multipliers build up again,
     # the closed seams merge again at the first step.
-    state.seam_multipliers = state.seam_gaps = state.seam_level_pushes = state.seam_pairs = None
+    state.seam_multipliers = state.seam_gaps = state.seam_level_pushes = state.seam_pushed_gaps = None
+    state.seam_pairs = None
     fine_sim.state = state
     return fine_sim

@@ -26,7 +26,11 @@ contacts at 36 nm), while a gap that merely levelled off above 1 mm (jumpsuit_04
 stitch48 at 1.09 mm) needs a few more pushes to close, and pushing every step kept
 jumpsuit_02 moving until 3.3 s instead of 1.2. jumpsuit_02's centre-back waist, where four
 seams meet, spent its three pushes while each still closed its gap by 5-10 % and came to
-rest 0.92-1.02 mm open; with answered pushes free, 0.77-0.94 mm (two runs, stop 66). And
+rest 0.92-1.02 mm open; with answered pushes free, 0.77-0.94 mm (two runs, stop 66), as
+it spent them while sewing and then opened from 0.4 to 0.96 mm as gravity came on. So a
+levelled gap LOADED x wider than it was ever pushed at is pushed again, for free: a new
+load (0.49 mm). A blocked seam swinging on a moving body sets this off only by opening
+3 % wider than ever before, so its pushes stay bounded. And
 one update adds at most `max_step` to a multiplier (the simulator: twice what the cloth
 carries at 100 % strain, 2 E h): the first update (lambda = k g everywhere at once)
 would otherwise double the pull on every seam still held open by contact or by a patch
@@ -52,6 +56,7 @@ from ..energies.quadratic import QuadraticEnergy
 LEVEL_GAP = 0.5e-3  # m: a gap that stopped shrinking above this still gets pushed ...
 LEVEL_PUSHES = 3  # ... this many times (at most this x max_step more force), no more
 HELPED = 0.97  # a levelled gap that shrank below this fraction since the last push gave way to it
+LOADED = 1.03  # a levelled gap this much wider than it was ever pushed at is under a new load
 
 
 @dataclass
@@ -96,6 +101,7 @@ class SeamEnergy(QuadraticEnergy):
         self.multipliers = np.zeros((D.shape[0], 3))  # lambda, N/m per sample
         self.last_gaps = np.full(D.shape[0], np.inf)  # m, at the last multiplier update
         self.level_pushes = np.zeros(D.shape[0], np.int64)  # updates of a gap that stopped shrinking
+        self.pushed_gaps = np.zeros(D.shape[0])  # m, the widest a levelled gap was pushed at
 
     def value(self, C):
         return (super().value(C) + float(np.sum(self._weighted_multipliers() * (self.D @ C)))
@@ -168,11 +174,17 @@ class SeamEnergy(QuadraticEnergy):
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
         shrinking = gaps < 0.9 * self.last_gaps
-        level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP) & (self.level_pushes < LEVEL_PUSHES)
+        # A levelled gap wider than it was ever pushed at carries a new load (gravity coming
+        # on after the sewing): pushed whatever its count, as a blocked seam never is.
+        loaded = (self.pushed_gaps > 0) & (gaps > LOADED * self.pushed_gaps)
+        level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP)
+        level &= (self.level_pushes < LEVEL_PUSHES) | loaded
         closing = (shrinking | level) & self.active & ~self.routed
         # Only a push the gap did not answer counts against the cap: a gap that still
         # gives way (below HELPED x the last one) is pushed on until it is under LEVEL_GAP.
-        self.level_pushes[closing & level & (gaps > HELPED * self.last_gaps)] += 1
+        pushed = closing & level
+        self.level_pushes[pushed & (gaps > HELPED * self.last_gaps) & ~loaded] += 1
+        self.pushed_gaps[pushed] = np.maximum(self.pushed_gaps[pushed], gaps[pushed])
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, self.max_step[closing] / np.maximum(size, 1e-300))[:, None]

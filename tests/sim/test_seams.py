@@ -276,6 +276,44 @@ def test_a_levelled_gap_that_still_gives_way_is_pushed_on_without_spending_its_p
     assert np.array_equal(seam.multipliers, before)
 
 
+def test_a_spent_gap_opened_by_a_new_load_is_pushed_again_and_a_swinging_one_is_not():
+    """jumpsuit_02's waist junction spent its pushes while sewing, then opened from 0.4 to
+    0.96 mm as gravity came on with none left. A gap wider than it was ever pushed at is
+    pushed again, for free; one that swings back and forth under that width (a blocked seam
+    on a moving body) is not, so the pushes a blocked seam gets stay bounded."""
+    from sim.seams.energy import LEVEL_PUSHES, LOADED
+
+    sim = two_panels(0.02)
+    seam, C = sim.model.seam, sim.C
+    seam.max_step = np.full_like(seam.max_step, np.inf)
+    half = C.shape[0] // 2
+
+    def at(gap):
+        out = C.copy()
+        out[:half, 0] += 0.02 - gap
+        return out
+
+    seam.update_multipliers(at(0.01))
+    for _ in range(LEVEL_PUSHES):  # stuck at 1 cm: spends its pushes
+        seam.update_multipliers(at(0.01))
+    assert seam.level_pushes.min() == LEVEL_PUSHES
+    before = seam.multipliers.copy()
+    seam.update_multipliers(at(0.01))
+    assert np.array_equal(seam.multipliers, before)  # spent
+    gap = 0.01
+    assert LOADED < 1.05
+    for _ in range(4):  # a load comes on: 5 % wider each update, each wider than ever pushed at
+        gap *= 1.05
+        before = np.abs(seam.multipliers).max()
+        seam.update_multipliers(at(gap))
+        assert np.abs(seam.multipliers).max() > before  # pushed ...
+        assert seam.level_pushes.max() == LEVEL_PUSHES  # ... for free
+    before = seam.multipliers.copy()
+    for g in (0.98 * gap, 1.02 * gap, 0.98 * gap, 1.02 * gap):  # swinging within 3 % of its widest
+        seam.update_multipliers(at(g))
+    assert np.array_equal(seam.multipliers, before)
+
+
 def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
     """Sheets a (z = +h) and b (z = -h) with a seam joining their x = 0.1 edges, and a third
     sheet at z = 0 reaching in between them over y < -0.005 (half of the seam): the pleat
