@@ -174,8 +174,9 @@ class SeamEnergy(QuadraticEnergy):
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
         shrinking = gaps < 0.9 * self.last_gaps
-        # A levelled gap wider than it was ever pushed at carries a new load (gravity coming
-        # on after the sewing): pushed whatever its count, as a blocked seam never is.
+        # A levelled gap 3 % wider than it was ever pushed at carries a new load (gravity
+        # coming on after the sewing): pushed again whatever its count, for free. A blocked
+        # seam swinging about one width passes its record only a few times.
         loaded = (self.pushed_gaps > 0) & (gaps > LOADED * self.pushed_gaps)
         level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP)
         level &= (self.level_pushes < LEVEL_PUSHES) | loaded

@@ -202,6 +202,7 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     for _ in range(3):
         sim.step()
     sim.model.seam.level_pushes[:2] = 1  # and how often a levelled-off gap was pushed
+    sim.model.seam.pushed_gaps[:2] = 1e-3  # and how wide it was then
     sim.step()
     ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 4, "eased"))
     resumed = _eased(True)
@@ -210,6 +211,8 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     assert np.abs(sim.model.seam.multipliers).max() > 0.0
     np.testing.assert_array_equal(resumed.model.seam.level_pushes, sim.model.seam.level_pushes)
     assert sim.model.seam.level_pushes.max() > 0
+    np.testing.assert_array_equal(resumed.model.seam.pushed_gaps, sim.model.seam.pushed_gaps)
+    assert sim.model.seam.pushed_gaps.max() > 0
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
