@@ -24,13 +24,13 @@ blocks a seam (a pleat's folded layers between its edges) pushing without bound 
 only press the layers together (dress_knife's waist tucks: Newton at its cap every step,
 contacts at 36 nm), while a gap that merely levelled off above 1 mm (jumpsuit_04's
 stitch48 at 1.09 mm) needs a few more pushes to close, and pushing every step kept
-jumpsuit_02 moving until 3.3 s instead of 1.2. jumpsuit_02's centre-back waist, where four
-seams meet, spent its three pushes while each still closed its gap by 5-10 % and came to
-rest 0.92-1.02 mm open; with answered pushes free, 0.77-0.94 mm (two runs, stop 66), as
-it spent them while sewing and then opened from 0.4 to 0.96 mm as gravity came on. So a
-levelled gap LOADED x wider than it was ever pushed at is pushed again, for free: a new
-load (0.49 mm). A blocked seam swinging on a moving body sets this off only by opening
-3 % wider than ever before, so its pushes stay bounded. And
+jumpsuit_02 moving until 3.3 s instead of 1.2. Two kinds of push are free, as the cap
+would otherwise stop a seam that is not blocked: one the gap answers (jumpsuit_02's
+four-seam waist junction closed 5-10 % a push, spent its cap and rested 1 mm open), and
+one at a gap LOADED x wider than it was ever pushed at, a new load (the same junction,
+capped while sewing, opened from 0.4 to 0.96 mm as gravity came on; with both free,
+0.49 mm). A blocked seam swinging on a moving body passes its widest only a few times,
+so its pushes stay bounded. And
 one update adds at most `max_step` to a multiplier (the simulator: twice what the cloth
 carries at 100 % strain, 2 E h): the first update (lambda = k g everywhere at once)
 would otherwise double the pull on every seam still held open by contact or by a patch
@@ -168,9 +168,9 @@ class SeamEnergy(QuadraticEnergy):
 
     def update_multipliers(self, C: np.ndarray) -> None:
         """lambda += k g at the state C that ended a step, where the gap shrank by 10 %
-        since the last update or levelled off above LEVEL_GAP (LEVEL_PUSHES times per
-        sample at most; full stiffness only: during the ramp the gaps are the sewing's,
-        not the seams' error), by at most max_step."""
+        since the last update or levelled off above LEVEL_GAP (LEVEL_PUSHES unanswered
+        pushes per sample, plus those at a new widest gap; full stiffness only: during
+        the ramp the gaps are the sewing's, not the seams' error), by at most max_step."""
         g = self.D @ C
         gaps = np.linalg.norm(g, axis=1)
         shrinking = gaps < 0.9 * self.last_gaps

@@ -218,6 +218,13 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
 
 
+def _gap_of(C: np.ndarray, gap: float) -> np.ndarray:
+    """two_panels(0.02)'s control points C with panel a moved to leave `gap` (m)."""
+    out = C.copy()
+    out[: C.shape[0] // 2, 0] += 0.02 - gap
+    return out
+
+
 def test_multipliers_grow_while_the_gap_shrinks_then_a_few_times_more_by_at_most_twice_what_the_cloth_carries():
     from sim.seams.energy import LEVEL_PUSHES
 
@@ -228,8 +235,7 @@ def test_multipliers_grow_while_the_gap_shrinks_then_a_few_times_more_by_at_most
     np.testing.assert_allclose(seam.max_step, cap)
     seam.update_multipliers(C)  # k g = 1e6 x 0.02 = 2e4 N/m, cut to the cap
     np.testing.assert_allclose(np.linalg.norm(seam.multipliers, axis=1), cap, rtol=1e-12)
-    closer = C.copy()
-    closer[: C.shape[0] // 2, 0] += 0.005  # the gap shrank by 25 %: another step of the cap
+    closer = _gap_of(C, 0.015)  # the gap shrank by 25 %: another step of the cap
     seam.update_multipliers(closer)
     np.testing.assert_allclose(np.linalg.norm(seam.multipliers, axis=1), 2.0 * cap, rtol=1e-12)
 
@@ -243,8 +249,7 @@ def test_multipliers_grow_while_the_gap_shrinks_then_a_few_times_more_by_at_most
     before = seam.multipliers.copy()
     seam.update_multipliers(C)  # ... then blocked: no more pushing
     assert np.array_equal(seam.multipliers, before)
-    closer = C.copy()
-    closer[: C.shape[0] // 2, 0] += 0.005  # panel a moved 5 mm towards b: the gap shrank by 25 %
+    closer = _gap_of(C, 0.015)  # panel a moved 5 mm towards b: the gap shrank by 25 %
     seam.update_multipliers(closer)
     np.testing.assert_allclose(np.abs(seam.multipliers).max(), 2e4 * (1 + LEVEL_PUSHES) + 1.5e4, rtol=1e-9)
     seam.update_multipliers(C)  # it opened again: not pushed
@@ -260,13 +265,11 @@ def test_a_levelled_gap_that_still_gives_way_is_pushed_on_without_spending_its_p
     seam, C = sim.model.seam, sim.C
     seam.max_step = np.full_like(seam.max_step, np.inf)
     seam.update_multipliers(C)
-    half = C.shape[0] // 2
     gap = 0.02
     assert 0.95 < HELPED  # 5 % closer is a push answered
     for n in range(2 * LEVEL_PUSHES):  # levelled (not 10 % closer), but 5 % closer each time
         gap *= 0.95
-        closer = C.copy()
-        closer[:half, 0] += 0.02 - gap
+        closer = _gap_of(C, gap)
         before = np.abs(seam.multipliers).max()
         seam.update_multipliers(closer)
         assert np.abs(seam.multipliers).max() > before  # pushed ...
@@ -289,31 +292,25 @@ def test_a_spent_gap_opened_by_a_new_load_is_pushed_again_and_a_swinging_one_is_
     sim = two_panels(0.02)
     seam, C = sim.model.seam, sim.C
     seam.max_step = np.full_like(seam.max_step, np.inf)
-    half = C.shape[0] // 2
 
-    def at(gap):
-        out = C.copy()
-        out[:half, 0] += 0.02 - gap
-        return out
-
-    seam.update_multipliers(at(0.01))
+    seam.update_multipliers(_gap_of(C, 0.01))
     for _ in range(LEVEL_PUSHES):  # stuck at 1 cm: spends its pushes
-        seam.update_multipliers(at(0.01))
+        seam.update_multipliers(_gap_of(C, 0.01))
     assert seam.level_pushes.min() == LEVEL_PUSHES
     before = seam.multipliers.copy()
-    seam.update_multipliers(at(0.01))
+    seam.update_multipliers(_gap_of(C, 0.01))
     assert np.array_equal(seam.multipliers, before)  # spent
     gap = 0.01
     assert LOADED < 1.05
     for _ in range(4):  # a load comes on: 5 % wider each update, each wider than ever pushed at
         gap *= 1.05
         before = np.abs(seam.multipliers).max()
-        seam.update_multipliers(at(gap))
+        seam.update_multipliers(_gap_of(C, gap))
         assert np.abs(seam.multipliers).max() > before  # pushed ...
         assert seam.level_pushes.max() == LEVEL_PUSHES  # ... for free
     before = seam.multipliers.copy()
     for g in (0.98 * gap, 1.02 * gap, 0.98 * gap, 1.02 * gap):  # swinging within 3 % of its widest
-        seam.update_multipliers(at(g))
+        seam.update_multipliers(_gap_of(C, g))
     assert np.array_equal(seam.multipliers, before)
 
 
