@@ -49,6 +49,10 @@ def step(model: Model, state: State) -> StepStats:
         model.drive.set_time(t_next)
         reach = contact_reach(model, state, x0)
         model.barrier.contact.focus(state.C, model.drive.target, reach + model.barrier.dhat)
+        # Each step starts from fully built collision sets: one built from a line-search
+        # segment's candidates sums in another order, and a run resumed from a checkpoint
+        # would then differ from the straight one in the last bits.
+        model.barrier.forget()
         # The predictor must not tunnel through a barrier thinner than one step of
         # motion: move only the collision-free fraction of the way (CCD), bodies
         # included; Newton carries on with whatever body motion remains.

@@ -32,6 +32,10 @@ ipctk.set_logger_level(ipctk.LoggerLevel.error)
 # Stopped short, the body lags (reported as body_lag) and catches up once the cloth moves.
 DRIVE_FLOOR = 1e-6
 
+# How far off the last CCD segment (in d_hat, and in its parameter) a point may lie and
+# still use its broad phase: round-off of the line search's C + alpha p is ~1e-16 m.
+ON_SEGMENT = 1e-6
+
 
 # GARMENT_REPRODUCIBLE=1: the same run gives the same garment, bit for bit. ipctk builds
 # collision sets and sums its potentials over them in parallel, in an order that changes
@@ -84,6 +88,13 @@ class BarrierEnergy(ContactEnergy):
         # collision set would otherwise be rebuilt (the broad phase dominates the build).
         self._slots = []
         self._version = -1
+        # The broad phase of the last CCD segment [C0, C0 + D] (max_step), its boxes
+        # inflated as a build's: its candidates hold every pair within d_hat anywhere on
+        # the segment, so the line search's trial points on it need only the narrow phase. A full build
+        # (LBVH broad phase) took 31 ms on dress_04 (22K vertices), the narrow phase over
+        # the segment's candidates 8 ms (same collisions, same potential to 13 digits).
+        # Built at the segment's first trial point (a step CCD stops at 0 has none).
+        self._segment = None  # [C0, D, D.D, candidates or (x0, x1), contact version]
 
     @staticmethod
     def _new_collisions():
@@ -94,6 +105,7 @@ class BarrierEnergy(ContactEnergy):
     def forget(self) -> None:
         """Drop the cached collision sets (the contact mesh was replaced)."""
         self._slots = []
+        self._segment = None
 
     def _update(self, C):
         """Collision-mesh vertices at C; `collisions` becomes the collision set there,
@@ -108,8 +120,12 @@ class BarrierEnergy(ContactEnergy):
                 return slot[1]
         collisions = self._slots.pop()[2] if len(self._slots) == 2 else self._new_collisions()
         x = self.contact.vertices(C)
+        candidates = self._candidates_at(C)
         with in_order():  # the collisions' order is the order of the sums (REPRODUCIBLE)
-            collisions.build(self.contact.mesh, x, self.dhat)
+            if candidates is None:
+                collisions.build(self.contact.mesh, x, self.dhat)
+            else:
+                collisions.build(candidates, self.contact.mesh, x, self.dhat)
         self._slots.insert(0, [C.copy(), x, collisions])
         self.collisions, self._H_cb = collisions, None
         return x
@@ -165,7 +181,36 @@ class BarrierEnergy(ContactEnergy):
         driven (the bodies' prescribed motion): and no pair closer than DRIVE_FLOOR d_hat."""
         x0, x1 = self.contact.vertices(C0), self.contact.vertices(C1, B1)
         floor = DRIVE_FLOOR * self.dhat if driven else 0.0
+        if B1 is not None:  # the bodies move too: trial points are off the cloth's segment
+            self._segment = None
+            return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, floor, None, self.ccd))
+        D = C1 - C0
+        self._segment = [C0.copy(), D, float(np.vdot(D, D)), (x0, x1), self.contact.version]
+        # CCD keeps its own broad phase: ACCD stops any candidate pair at a tenth of its
+        # starting distance, so a set inflated by d_hat would shorten steps.
         return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, floor, None, self.ccd))
+
+    def _candidates_at(self, C):
+        """The last CCD segment's candidates when C lies on that segment (to round-off),
+        else None. A build inflates each box by d_hat / 2 (a pair's two boxes then meet
+        within d_hat); the segment's carry the margin of a point off it by ON_SEGMENT d_hat."""
+        if self._segment is None:
+            return None
+        C0, D, DD, candidates, version = self._segment
+        if version != self.contact.version or DD == 0.0:
+            return None
+        R = C - C0
+        t = float(np.vdot(R, D)) / DD
+        if not -ON_SEGMENT <= t <= 1.0 + ON_SEGMENT:
+            return None
+        R -= t * D
+        if float(np.abs(R).max(initial=0.0)) > ON_SEGMENT * self.dhat:
+            return None
+        if isinstance(candidates, tuple):  # the segment's first build: its broad phase now
+            x0, x1 = candidates
+            candidates = self._segment[3] = ipctk.Candidates()
+            candidates.build(self.contact.mesh, x0, x1, (0.5 + 2.0 * ON_SEGMENT) * self.dhat)
+        return candidates
 
     def body_clearance(self, C, reach: float) -> np.ndarray:
         """(Vo,) how far each obstacle vertex may move with the cloth held at C, keeping

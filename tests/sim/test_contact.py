@@ -90,6 +90,30 @@ def test_barrier_keeps_the_collision_sets_of_its_last_two_points(one_ipc_thread)
     assert fresh.value(C3) == E3  # the reused set holds exactly C3's collisions
 
 
+def test_trial_points_on_the_ccd_segment_get_the_collisions_of_a_full_build(one_ipc_thread):
+    """The line search's points on the last CCD segment are built from that segment's
+    broad phase; they must hold the collisions a full build finds, and a point off the
+    segment must not be built from it."""
+    scene = DROP.format(height=0.1605)
+    e = build_simulator(loads_scene(scene)).model.barrier
+    fresh = build_simulator(loads_scene(scene)).model.barrier
+    C1 = build_simulator(loads_scene(scene)).C.copy()
+    up = C1 + [0.0, 0.0, 5e-3]
+    assert e.max_step(up, up + [0.01, 0.0, 0.0]) == 1.0  # far above the ball: no candidates near it
+    assert e.value(C1) == pytest.approx(fresh.value(C1), rel=1e-12) and e.n_collisions > 0
+    down = C1 - [0.0, 0.0, 2e-4]
+    assert e.max_step(up, down) == 1.0
+    for t in (0.5, 0.95, 1.0):
+        C = up + t * (down - up)
+        assert e._candidates_at(C) is not None
+        assert e.value(C) == pytest.approx(fresh.value(C), rel=1e-12)
+        assert e.n_collisions == fresh.n_collisions
+    assert e.n_collisions > 0
+    aside = C1 + [2e-3, 0.0, 0.0]
+    assert e._candidates_at(aside) is None
+    assert e.value(aside) == pytest.approx(fresh.value(aside), rel=1e-12) and e.n_collisions == fresh.n_collisions
+
+
 def test_projected_contact_hessian_stays_psd_in_pattern():
     """Off-pattern contact entries move to the diagonal: the assembled matrix stays PSD."""
     free = np.arange(6)
