@@ -7,7 +7,6 @@ failure category (the report says which), 2 for bad input, 130 when interrupted.
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 from sim.errors import InputError, Interrupted
@@ -17,20 +16,22 @@ from .console import err, print_table, progress
 REPORT_COLUMNS = ("status", "seam_gap_max_mm", "crossings", "dofs", "seconds", "settle_time_s")
 
 
-def from_scene(path: Path) -> tuple[Path, Path]:
-    """The garment source and body mesh a scene file names (relative to the scene)."""
+def from_scene(path: Path) -> tuple[Path, Path, dict]:
+    """The garment source and body mesh a scene file names (relative to the scene), and
+    the settings it chooses when it leaves the garment's start to the toolkit
+    (garment/dress/scene_file.py; a scene that places its garment by hand gives none)."""
+    from garment.dress.scene_file import dress_settings, leaves_placement
+    from garment.scene.read import read_scene_data
+
+    data = read_scene_data(path)
     try:
-        data = tomllib.loads(path.read_text())
         source = data["garment"][0]["source"]
         body = data["obstacle"][0]["mesh"]
-    except OSError as e:
-        raise InputError(f"{path}: {e.strerror}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise InputError(f"{path}: not a TOML scene ({e})") from None
     except (KeyError, IndexError, TypeError):
         raise InputError(f"{path}: `garment dress` needs a scene with [[garment]] source and an [[obstacle]] "
                          "mesh (the body)") from None
-    return (path.parent / source).resolve(), (path.parent / body).resolve()
+    settings = dress_settings(data, path) if leaves_placement(data) else {}
+    return (path.parent / source).resolve(), (path.parent / body).resolve(), settings
 
 
 def parse_settings(pairs) -> dict:
@@ -49,9 +50,9 @@ def run(args) -> int:
 
     from .simulate import StopOnSignal
 
-    pattern = args.pattern
+    pattern, chosen = args.pattern, {}
     if pattern.suffix.lower() == ".toml":
-        pattern, body = from_scene(input_file(pattern, "scene"))
+        pattern, body, chosen = from_scene(input_file(pattern, "scene"))
         body = args.body or body
     else:
         if args.body is None:
@@ -59,7 +60,7 @@ def run(args) -> int:
         body = args.body
     input_file(pattern, "garment pattern")
     input_file(body, "body mesh")
-    overrides = parse_settings(args.set)
+    overrides = {**chosen, **parse_settings(args.set)}
     quiet = args.quiet or args.json
     with progress(quiet) as bar, StopOnSignal(quiet) as stop:
         task = bar.add_task(Path(pattern).stem[:24], total=None, status="")

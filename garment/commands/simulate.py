@@ -20,7 +20,9 @@ from rich.markup import escape
 from sim.budget import BASE_BYTES, require_memory
 from sim.errors import InputError, Interrupted
 from sim.files import output_file, output_folder, remove_partial_files
-from garment.scene import Scene, TimeSpec, load_scene
+from garment.dress.scene_file import leaves_placement
+from garment.scene import Scene, TimeSpec, parse_scene
+from garment.scene.read import read_scene_data
 
 from .console import err, progress
 from .options import number_option, scene_option
@@ -349,10 +351,13 @@ def print_logging_cost(log_seconds: float, sim_seconds: float) -> None:
 
 
 def run(args) -> int:
-    scene = load_scene(args.scene)
+    data = read_scene_data(args.scene)
+    scene = parse_scene(data, args.scene)
     out = scene.output
     rrd = args.output if args.output is not None else out.rrd
     mesh_dir = args.mesh_dir if args.mesh_dir is not None else out.mesh_dir
+    if leaves_placement(data):
+        scene = placed_for_dressing(scene, data, rrd, args.quiet)
     scene = override_frames(scene, args.frames)
     options = render_options(args) if args.render is not None else None
     number_option("--checkpoint-every", args.checkpoint_every, ge=0)
@@ -367,6 +372,18 @@ def run(args) -> int:
     if not args.quiet:
         print_how_to_open(rrd, args.render, mesh_dir, resumed=args.resume)
     return 0
+
+
+def placed_for_dressing(scene: Scene, data: dict, rrd: Path | None, quiet: bool) -> Scene:
+    """A scene that leaves the garment's start to the toolkit, dressed as `garment dress`
+    dresses (garment/dress/scene_file.py); the placed garment goes beside the recording."""
+    from garment.dress.scene_file import dressed_scene
+
+    folder = rrd.with_suffix("") if rrd is not None else Path("out") / scene.name
+    if not quiet:
+        err.print(f"[dim]{scene.path}: no pre-roll or body inset given, so the garment is placed and sewn as "
+                  f"`garment dress` does it; placed garment: {folder / 'patches.json'}")
+    return dressed_scene(data, scene.path, folder)
 
 
 def print_how_to_open(rrd: Path | None, video: Path | None = None, mesh_dir: Path | None = None,

@@ -34,6 +34,11 @@ MAX_SCENE_BYTES = 16_000_000  # a larger file is something else given by mistake
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file."""
+    return parse_scene(read_scene_data(path), path)
+
+
+def read_scene_data(path: str | Path) -> dict:
+    """A scene file's TOML document, not yet validated."""
     if Path(path).is_dir():
         raise SceneError(path, "<file>", "is a folder, not a scene file")
     try:
@@ -48,7 +53,10 @@ def load_scene(path: str | Path) -> Scene:
     except UnicodeDecodeError as e:
         problem = f"not valid UTF-8 ({e.reason} at byte {e.start})"
         raise SceneError(path, "<toml>", problem) from None
-    return loads_scene(text, path)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(path, "<toml>", str(e)) from None
 
 
 def loads_scene(text: str, source: str | Path = "<string>") -> Scene:
