@@ -270,13 +270,14 @@ def fit_to_body(patches, body_V: np.ndarray) -> None:
 
 
 def dress_scene(patches: Path, obstacle: dict, o: DressOptions, preroll: float | None = None,
-                frames: int | None = None, name: str | None = None, drag: bool = True):
+                frames: int | None = None, name: str | None = None, drag: bool = True, base: Path | None = None):
     """The scene that sews and settles the placed garment `patches` on the body
     `obstacle` (a scene [[obstacle]] table, which gets the inset) with the defaults `o`;
     preroll: the bodies' pre-roll (default: the sewing time; a moving body starts after
     it, and gravity starts with it: the body is whole only then); frames: default
     max_time's worth; drag: o.settle_drag after the pre-roll (a still body: to rest
-    without swinging), else none (a moving body's motion is followed)."""
+    without swinging), else none (a moving body's motion is followed); base: the scene
+    file the obstacle's relative paths are relative to (default: beside `patches`)."""
     from ..scene.read import parse_scene
 
     data = {
@@ -295,7 +296,7 @@ def dress_scene(patches: Path, obstacle: dict, o: DressOptions, preroll: float |
                  "settle_drag": o.settle_drag if drag else 0.0,
                  "frames": frames or int(np.ceil(o.max_time / (o.dt * o.steps_per_frame)))},
     }
-    return parse_scene(data, patches.parent / "scene.toml")
+    return parse_scene(data, base or patches.parent / "scene.toml")
 
 
 # m: a garment whose mean height has dropped this far below where it was placed has slid
