@@ -53,6 +53,16 @@ class State:
     def copy(self) -> "State":
         return copy.deepcopy(self)
 
+    def without_seams(self) -> "State":
+        """A copy with every seam field (`seam_*`) cleared, for a model whose seams are
+        sampled and meshed anew (a refined garment): its multipliers build up again and
+        its closed seams merge again at the first step."""
+        state = self.copy()
+        for f in fields(self):
+            if f.name.startswith("seam_"):
+                setattr(state, f.name, None)
+        return state
+
     # ------------------------------------------------------------------ on disk
     def to_arrays(self) -> dict[str, np.ndarray]:
         """The fields as named arrays (None fields left out)."""

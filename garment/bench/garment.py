@@ -153,11 +153,7 @@ def _refined(sim: Simulator, scene, levels: int, folder: Path) -> Simulator:
         garments.append(dataclasses.replace(g, source=save_patchset(folder / f"{g.name}.json", fine)))
     # keep_crossings: the coarse run's seam-band crossings reach past the fine bands.
     fine_sim = build_simulator(dataclasses.replace(scene, garments=garments), keep_crossings=True)
-    state = sim.state.copy()
+    state = sim.state.without_seams()  # other samples and seam vertices at the finer spans
     state.C, state.V = np.concatenate(C), np.concatenate(V)
-    # Other samples and seam vertices at the finer spans: the multipliers build up again,
-    # the closed seams merge again at the first step.
-    state.seam_multipliers = state.seam_gaps = state.seam_level_pushes = state.seam_pushed_gaps = None
-    state.seam_pairs = None
     fine_sim.state = state
     return fine_sim

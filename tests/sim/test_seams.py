@@ -3,6 +3,8 @@ never produce a barrier, and nothing passes through anything."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -216,6 +218,13 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
+    # A refined garment's model starts its seams anew: every seam field goes, the rest stays.
+    fresh = sim.state.without_seams()
+    seam_fields = [f.name for f in dataclasses.fields(fresh) if f.name.startswith("seam_")]
+    assert len(seam_fields) == 5  # seam_pairs is None here: no contact mesh to merge in
+    assert all(getattr(sim.state, k) is not None for k in seam_fields if k != "seam_pairs")
+    assert all(getattr(fresh, k) is None for k in seam_fields)
+    assert np.array_equal(fresh.C, sim.C) and fresh.t == sim.state.t and sim.state.seam_multipliers is not None
 
 
 def _gap_of(C: np.ndarray, gap: float) -> np.ndarray:
