@@ -32,6 +32,12 @@ ipctk.set_logger_level(ipctk.LoggerLevel.error)
 # Stopped short, the body lags (reported as body_lag) and catches up once the cloth moves.
 DRIVE_FLOOR = 1e-6
 
+# m: how far a held-back body looks for cloth through ipctk's broad phase, which finds
+# every pair within that reach (at the whole lag of a body held back, arms lowered onto
+# trapped cloth while the body grew: 0.17 m behind, 41 s a step, dress_777_04, stop 68).
+# Farther out a lower bound from the nearest cloth vertex serves (`_far_clearance`).
+CLEARANCE_REACH = 0.01
+
 # How far off the last CCD segment (in d_hat, and in its parameter) a point may lie and
 # still use its broad phase: round-off of the line search's C + alpha p is ~1e-16 m.
 ON_SEGMENT = 1e-6
@@ -221,17 +227,36 @@ class BarrierEnergy(ContactEnergy):
         focused mesh (ContactMesh.focus) are beyond reach of the cloth."""
         floor = DRIVE_FLOOR * self.dhat
         reach = max(float(reach), 2.0 * floor)
+        near = min(reach, CLEARANCE_REACH)
         x = self.contact.vertices(C)
         candidates = ipctk.Candidates()
-        candidates.build(self.contact.mesh, x, reach)
-        safe = candidates.compute_per_vertex_safe_distances(self.contact.mesh, x, reach, floor)
-        out = np.full(len(self.contact.obstacle_vertices), reach - floor)
+        candidates.build(self.contact.mesh, x, near)
+        safe = candidates.compute_per_vertex_safe_distances(self.contact.mesh, x, near, floor)
         body = np.ravel(safe)[self.contact.n_cloth:]
+        if reach > near:  # farther out, a lower bound from the nearest cloth vertex will do
+            body = np.minimum(np.maximum(body, self._far_clearance(x) - floor), reach - floor)
+        out = np.full(len(self.contact.obstacle_vertices), reach - floor)
         if self.contact.body_ids is None:
             out[:] = body
         else:
             out[self.contact.body_ids] = body
         return np.maximum(out, 0.0)
+
+    def _far_clearance(self, x: np.ndarray) -> np.ndarray:
+        """(Vb,) a lower bound on the distance from each body vertex's triangles to the
+        cloth at x: the distance to the nearest cloth vertex, less the longest cloth edge
+        (a triangle lies within its longest edge of each of its vertices) and the vertex's
+        longest edge (its own triangles reach no farther from it)."""
+        from scipy.spatial import cKDTree
+
+        n = self.contact.n_cloth
+        edges = self.contact.mesh.edges
+        length = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+        cloth = (edges < n).all(axis=1)
+        own = np.zeros(len(x))
+        np.maximum.at(own, edges[~cloth].ravel(), np.repeat(length[~cloth], 2))
+        d, _ = cKDTree(x[:n]).query(x[n:])
+        return d - length[cloth].max(initial=0.0) - own[n:]
 
     def min_distance(self, C) -> float:
         x = self._update(C)

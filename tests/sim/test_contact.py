@@ -196,3 +196,28 @@ def test_ccd_at_a_graze_is_exact():
     alpha = barrier.max_step(C, C - [0.0, 0.0, 2e-8])
     assert 0.40 < alpha < 0.5
     assert barrier.min_distance(C - alpha * np.array([0.0, 0.0, 2e-8])) > 0.0
+
+
+def test_a_held_back_body_looks_for_cloth_near_by_and_bounds_the_rest():
+    """body_clearance finds pairs only within CLEARANCE_REACH (its broad phase's cost grows
+    with the reach); beyond, each body vertex gets a lower bound from the nearest cloth
+    vertex. Against ipctk's per-vertex safe distances over the whole reach: never more
+    (no vertex may move into cloth), and the ball's top, 14 cm under the sheet, still gets
+    more than CLEARANCE_REACH."""
+    import ipctk
+
+    from sim.energies.barrier import CLEARANCE_REACH, DRIVE_FLOOR
+
+    e = build_simulator(loads_scene(DROP.format(height=0.3))).model.barrier
+    C = build_simulator(loads_scene(DROP.format(height=0.3))).C
+    reach, floor = 0.2, DRIVE_FLOOR * e.dhat
+    out = e.body_clearance(C, reach)
+    x = e.contact.vertices(C)
+    candidates = ipctk.Candidates()
+    candidates.build(e.contact.mesh, x, reach)
+    exact = np.ravel(candidates.compute_per_vertex_safe_distances(e.contact.mesh, x, reach, floor))
+    exact = exact[e.contact.n_cloth:]
+    assert e.contact.body_ids is None and out.shape == exact.shape
+    assert np.all(out <= exact + 1e-12)
+    ball = e.contact.obstacle_vertices[:, 2] > 0.15  # the ball's top, 14-15 cm under the sheet
+    assert ball.any() and out[ball].min() > CLEARANCE_REACH

@@ -97,6 +97,7 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     assert report["body_frame"] == "m, Y-up"
     assert report["seam_gap_max_mm"] < 1.0
     assert report["crossings"] == 0 and report["dofs"] > 0
+    assert report["body_lag_mm"] < 0.1  # the body grew back all the way: nothing held it
     assert json.loads((out / "report.json").read_text())["status"] == "ok"
     # Where the time went: every step in one phase (0.6 s of sewing: 0.32 s at dt = 0.01 s,
     # to the first frame end once the body grows, 0.28 s at grow_dt = 0.02 s; then the
