@@ -20,7 +20,6 @@ from rich.markup import escape
 from sim.budget import BASE_BYTES, require_memory
 from sim.errors import InputError, Interrupted
 from sim.files import output_file, output_folder, remove_partial_files
-from garment.dress.scene_file import leaves_placement
 from garment.scene import Scene, TimeSpec, parse_scene
 from garment.scene.read import read_scene_data
 
@@ -351,6 +350,8 @@ def print_logging_cost(log_seconds: float, sim_seconds: float) -> None:
 
 
 def run(args) -> int:
+    from garment.dress.scene_file import leaves_placement
+
     data = read_scene_data(args.scene)
     scene = parse_scene(data, args.scene)
     out = scene.output
