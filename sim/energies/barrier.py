@@ -99,7 +99,9 @@ class BarrierEnergy(ContactEnergy):
         # the segment, so the line search's trial points on it need only the narrow phase. A full build
         # (LBVH broad phase) took 31 ms on dress_04 (22K vertices), the narrow phase over
         # the segment's candidates 8 ms (same collisions, same potential to 13 digits).
-        # Built at the segment's first trial point (a step CCD stops at 0 has none).
+        # Built at the second point tried on the segment: the first is often the only one
+        # (a sewing step's CCD-shortened step, taken at once), and a plain build costs
+        # no more than the segment's broad phase.
         self._segment = None  # [C0, D, D.D, candidates or (x0, x1), contact version]
 
     @staticmethod
@@ -212,8 +214,11 @@ class BarrierEnergy(ContactEnergy):
         R -= t * D
         if float(np.abs(R).max(initial=0.0)) > ON_SEGMENT * self.dhat:
             return None
-        if isinstance(candidates, tuple):  # the segment's first build: its broad phase now
-            x0, x1 = candidates
+        if isinstance(candidates, tuple):
+            if candidates[1] is not None:  # the first point tried: a plain build
+                self._segment[3] = (candidates[0], None, candidates[1])
+                return None
+            x0, x1 = candidates[0], candidates[-1]
             candidates = self._segment[3] = ipctk.Candidates()
             candidates.build(self.contact.mesh, x0, x1, (0.5 + 2.0 * ON_SEGMENT) * self.dhat)
         return candidates

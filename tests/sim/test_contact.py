@@ -103,12 +103,14 @@ def test_trial_points_on_the_ccd_segment_get_the_collisions_of_a_full_build(one_
     assert e.value(C1) == pytest.approx(fresh.value(C1), rel=1e-12) and e.n_collisions > 0
     down = C1 - [0.0, 0.0, 2e-4]
     assert e.max_step(up, down) == 1.0
-    for t in (0.5, 0.95, 1.0):
+    for t in (0.5, 0.95, 1.0):  # the first point a plain build, the others from the segment's broad phase
         C = up + t * (down - up)
-        assert e._candidates_at(C) is not None
         assert e.value(C) == pytest.approx(fresh.value(C), rel=1e-12)
         assert e.n_collisions == fresh.n_collisions
     assert e.n_collisions > 0
+    import ipctk
+
+    assert isinstance(e._segment[3], ipctk.Candidates)  # built, and used for 0.95 and 1.0
     aside = C1 + [2e-3, 0.0, 0.0]
     assert e._candidates_at(aside) is None
     assert e.value(aside) == pytest.approx(fresh.value(aside), rel=1e-12) and e.n_collisions == fresh.n_collisions
