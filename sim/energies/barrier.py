@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import ipctk
 import numpy as np
@@ -102,7 +103,7 @@ class BarrierEnergy(ContactEnergy):
         # Built at the second point tried on the segment: the first is often the only one
         # (a sewing step's CCD-shortened step, taken at once), and a plain build costs
         # no more than the segment's broad phase.
-        self._segment = None  # [C0, D, D.D, candidates or (x0, x1), contact version]
+        self._segment: _Segment | None = None
 
     @staticmethod
     def _new_collisions():
@@ -189,11 +190,8 @@ class BarrierEnergy(ContactEnergy):
         driven (the bodies' prescribed motion): and no pair closer than DRIVE_FLOOR d_hat."""
         x0, x1 = self.contact.vertices(C0), self.contact.vertices(C1, B1)
         floor = DRIVE_FLOOR * self.dhat if driven else 0.0
-        if B1 is not None:  # the bodies move too: trial points are off the cloth's segment
-            self._segment = None
-            return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, floor, None, self.ccd))
-        D = C1 - C0
-        self._segment = [C0.copy(), D, float(np.vdot(D, D)), (x0, x1), self.contact.version]
+        # With the bodies moving too, trial points are off the cloth's segment.
+        self._segment = None if B1 is not None else _Segment(C0.copy(), C1 - C0, x0, x1, self.contact.version)
         # CCD keeps its own broad phase: ACCD stops any candidate pair at a tenth of its
         # starting distance, so a set inflated by d_hat would shorten steps.
         return float(ipctk.compute_collision_free_stepsize(self.contact.mesh, x0, x1, floor, None, self.ccd))
@@ -202,26 +200,26 @@ class BarrierEnergy(ContactEnergy):
         """The last CCD segment's candidates when C lies on that segment (to round-off),
         else None. A build inflates each box by d_hat / 2 (a pair's two boxes then meet
         within d_hat); the segment's carry the margin of a point off it by ON_SEGMENT d_hat."""
-        if self._segment is None:
+        seg = self._segment
+        if seg is None or seg.version != self.contact.version:
             return None
-        C0, D, DD, candidates, version = self._segment
-        if version != self.contact.version or DD == 0.0:
+        DD = float(np.vdot(seg.D, seg.D))
+        if DD == 0.0:
             return None
-        R = C - C0
-        t = float(np.vdot(R, D)) / DD
+        R = C - seg.C0
+        t = float(np.vdot(R, seg.D)) / DD
         if not -ON_SEGMENT <= t <= 1.0 + ON_SEGMENT:
             return None
-        R -= t * D
+        R -= t * seg.D
         if float(np.abs(R).max(initial=0.0)) > ON_SEGMENT * self.dhat:
             return None
-        if isinstance(candidates, tuple):
-            if candidates[1] is not None:  # the first point tried: a plain build
-                self._segment[3] = (candidates[0], None, candidates[1])
-                return None
-            x0, x1 = candidates[0], candidates[-1]
-            candidates = self._segment[3] = ipctk.Candidates()
-            candidates.build(self.contact.mesh, x0, x1, (0.5 + 2.0 * ON_SEGMENT) * self.dhat)
-        return candidates
+        seg.points += 1
+        if seg.points == 1:  # the first point tried: a plain build
+            return None
+        if seg.candidates is None:
+            seg.candidates = ipctk.Candidates()
+            seg.candidates.build(self.contact.mesh, seg.x0, seg.x1, (0.5 + 2.0 * ON_SEGMENT) * self.dhat)
+        return seg.candidates
 
     def body_clearance(self, C, reach: float) -> np.ndarray:
         """(Vo,) how far each obstacle vertex may move with the cloth held at C, keeping
@@ -268,6 +266,20 @@ class BarrierEnergy(ContactEnergy):
         if len(self.collisions) == 0:
             return float("inf")
         return float(np.sqrt(self.collisions.compute_minimum_distance(self.contact.mesh, x)))
+
+
+@dataclass
+class _Segment:
+    """The last CCD segment C0 -> C0 + D (contact vertices x0 -> x1) and its broad phase,
+    built once a second point on it is tried (BarrierEnergy._candidates_at)."""
+
+    C0: np.ndarray
+    D: np.ndarray
+    x0: np.ndarray
+    x1: np.ndarray
+    version: int  # the contact mesh's, when it was set
+    candidates: ipctk.Candidates | None = None
+    points: int = 0  # tried on it so far
 
 
 def _face_stencils(W, faces) -> np.ndarray:

@@ -110,7 +110,7 @@ def test_trial_points_on_the_ccd_segment_get_the_collisions_of_a_full_build(one_
     assert e.n_collisions > 0
     import ipctk
 
-    assert isinstance(e._segment[3], ipctk.Candidates)  # built, and used for 0.95 and 1.0
+    assert isinstance(e._segment.candidates, ipctk.Candidates)  # built, and used for 0.95 and 1.0
     aside = C1 + [2e-3, 0.0, 0.0]
     assert e._candidates_at(aside) is None
     assert e.value(aside) == pytest.approx(fresh.value(aside), rel=1e-12) and e.n_collisions == fresh.n_collisions
