@@ -384,7 +384,7 @@ def placed_for_dressing(scene: Scene, data: dict, rrd: Path | None, quiet: bool)
     if not quiet:
         err.print(f"[dim]{scene.path}: no pre-roll or body inset given, so the garment is placed and sewn as "
                   f"`garment dress` does it; placed garment: {folder / 'patches.json'}")
-    return dressed_scene(data, scene.path, folder)
+    return dressed_scene(data, scene, folder)
 
 
 def print_how_to_open(rrd: Path | None, video: Path | None = None, mesh_dir: Path | None = None,

@@ -88,13 +88,15 @@ def body_frame(obstacle: dict, body: Path):
     return frame, to_scene_frame(V.astype(float), frame.scale, frame.up), F.astype(np.int32)
 
 
-def dressed_scene(data: dict, source: Path, folder: Path):
-    """The scene that dresses the body of a placement-free scene (`source`, its TOML
-    `data`) in its garment: the garment conformed and placed by job.place_garment into
-    `folder`/patches.json, then sewn and settled (or danced) on job.dress_scene's schedule."""
+def dressed_scene(data: dict, scene, folder: Path):
+    """The scene that dresses the body of a placement-free scene (`scene`, as read from
+    its TOML `data`) in its garment: the garment conformed and placed by
+    job.place_garment into `folder`/patches.json, then sewn and settled (or danced) on
+    job.dress_scene's schedule."""
     from ..io.obstacles import load_obstacle
-    from ..scene.read import parse_scene
     from .job import DressFailure, DressOptions, dress_scene, place_garment
+
+    source = scene.path
 
     options = DressOptions.with_overrides(dress_settings(data, source))
     garment, obstacle = data["garment"][0], data["obstacle"][0]
@@ -109,7 +111,7 @@ def dressed_scene(data: dict, source: Path, folder: Path):
         frame, V, F = body_frame(obstacle, body)
         table = {"name": obstacle.get("name", "body"), "mesh": str(body), "scale": frame.scale, "up": frame.up}
     else:  # its first pose, in the simulator's frame as the scene turns it (`up`, `scale`)
-        geometry = load_obstacle(parse_scene(data, source).obstacles[0])
+        geometry = load_obstacle(scene.obstacles[0])
         frame, V, F = BodyFrame(1.0, "z", "m"), geometry.vertices, geometry.faces
         table = dict(obstacle)
     folder.mkdir(parents=True, exist_ok=True)

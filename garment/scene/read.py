@@ -53,19 +53,19 @@ def read_scene_data(path: str | Path) -> dict:
     except UnicodeDecodeError as e:
         problem = f"not valid UTF-8 ({e.reason} at byte {e.start})"
         raise SceneError(path, "<toml>", problem) from None
+    return _toml(text, path)
+
+
+def _toml(text: str, source: str | Path) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        raise SceneError(path, "<toml>", str(e)) from None
+        raise SceneError(source, "<toml>", str(e)) from None
 
 
 def loads_scene(text: str, source: str | Path = "<string>") -> Scene:
     """Parse and validate a scene from TOML text; ``source`` only names it in errors."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise SceneError(source, "<toml>", str(e)) from None
-    return parse_scene(data, source)
+    return parse_scene(_toml(text, source), source)
 
 
 def parse_scene(data: dict, source: str | Path = "<string>") -> Scene:
