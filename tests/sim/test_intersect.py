@@ -1,12 +1,15 @@
-"""sim/intersect.py: the vectorised segment-triangle test agrees with ipctk's, pair by pair."""
+"""sim/intersect.py and sim/bvh.py: the float test agrees with ipctk's pair by pair, and
+the tree finds every crossing pair that testing all pairs with ipctk finds."""
 
 import ipctk
 import numpy as np
+import pytest
 
-from sim.intersect import crossing_pairs, segments_cross_triangles
+from sim import bvh
+from sim.intersect import crossing_pairs
 
 
-def test_segment_triangle_test_agrees_with_ipctk():
+def test_segment_triangle_verdict_agrees_with_ipctk():
     rng = np.random.default_rng(3)
     n = 4000
     a, b, c = (rng.normal(size=(n, 3)) for _ in range(3))
@@ -14,10 +17,11 @@ def test_segment_triangle_test_agrees_with_ipctk():
     m = (a + b + c) / 3 + 0.3 * rng.normal(size=(n, 3))
     d = rng.normal(size=(n, 3))
     p, q = m - d * rng.uniform(0, 1, (n, 1)), m + d * rng.uniform(0, 1, (n, 1))
-    ours = segments_cross_triangles(p, q, a, b, c)
+    ours = np.array([bvh.verdict(*v, 1e-9) for v in zip(p, q, a, b, c)])
     theirs = np.array([ipctk.is_edge_intersecting_triangle(*v) for v in zip(p, q, a, b, c)])
-    assert 0.2 * n < ours.sum() < 0.8 * n  # both outcomes well represented
-    assert np.array_equal(ours, theirs)
+    assert (ours == bvh.UNSURE).sum() == 0  # generic positions: the float test decides
+    assert 0.2 * n < (ours == bvh.HIT).sum() < 0.8 * n  # both outcomes well represented
+    assert np.array_equal(ours == bvh.HIT, theirs)
 
 
 def test_segments_in_the_plane_or_on_a_border_are_decided_as_ipctk_does():
@@ -31,11 +35,50 @@ def test_segments_in_the_plane_or_on_a_border_are_decided_as_ipctk_does():
              ((0.2, 0.2, 0.0), (0.2, 0.2, 1.0)),    # an end on the triangle
              ((0.5, 0.5, -1.0), (0.5, 0.5, 1.0)),   # through the hypotenuse
              ((0.0, 0.0, -1.0), (0.0, 0.0, 1.0)),   # through a corner
-             ((0.3, 0.3, 1e-17), (0.6, 0.1, -1e-17))]  # across the plane at round-off
-    p, q = (np.array([case[i] for case in cases]) for i in (0, 1))
-    A, B, C = (np.tile(v, (len(cases), 1)) for v in (a, b, c))
-    theirs = [ipctk.is_edge_intersecting_triangle(*v) for v in zip(p, q, A, B, C)]
-    assert segments_cross_triangles(p, q, A, B, C).tolist() == theirs
+             ((0.3, 0.3, 1e-17), (0.6, 0.1, -1e-17)),  # across the plane at round-off
+             ((0.3, 0.3, 1e-12), (0.6, 0.1, 1e-12))]   # parallel, just above the plane
+    x = np.concatenate([[a, b, c], np.array(cases).reshape(-1, 3)])
+    edges = 3 + np.arange(2 * len(cases)).reshape(-1, 2)
+    theirs = [k for k, (p, q) in enumerate(cases) if ipctk.is_edge_intersecting_triangle(p, q, a, b, c)]
+    assert 0 < len(theirs) < len(cases)
+    assert crossing_pairs(x, edges, np.array([[0, 1, 2]]))[:, 0].tolist() == theirs
+
+
+def _sheet(n, lift, rng):
+    """An n x n grid of unit size, its vertices jittered in its plane z = lift (a flat
+    panel) and its triangles."""
+    u, v = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    x = np.stack([u, v, np.full_like(u, lift)], -1).reshape(-1, 3)
+    x[:, :2] += rng.uniform(-0.2, 0.2, (len(x), 2)) / n
+    i = np.arange(n * n).reshape(n, n)
+    quads = np.stack([i[:-1, :-1], i[:-1, 1:], i[1:, 1:], i[1:, :-1]], -1).reshape(-1, 4)
+    return x, np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
+@pytest.mark.parametrize("n_segments", [30, 600])  # tree over the triangles, then over the segments
+def test_crossing_pairs_are_the_pairs_ipctk_finds_testing_every_pair(n_segments):
+    """Two sheets in one plane (GarmentCode's overlapping panels: borders and coplanar
+    pairs everywhere), a third crumpled across them, and random segments from short to
+    as long as the scene, some sharing a vertex with a triangle."""
+    rng = np.random.default_rng(n_segments)
+    x0, f0 = _sheet(8, 0.0, rng)
+    x1, f1 = _sheet(8, 0.0, rng)
+    x1[:, :2] += 0.3
+    x2, f2 = _sheet(8, 0.0, rng)
+    x2[:, 2] = 0.3 * np.sin(7 * x2[:, 0]) * np.cos(5 * x2[:, 1])
+    x = np.concatenate([x0, x1, x2])
+    faces = np.concatenate([f0, f1 + len(x0), f2 + len(x0) + len(x1)])
+    starts = rng.integers(len(x), size=n_segments)  # segments from mesh vertices ...
+    ends = len(x) + np.arange(n_segments)
+    x = np.concatenate([x, x[starts] + rng.normal(size=(n_segments, 3)) * rng.uniform(0.01, 1, (n_segments, 1))])
+    edges = np.stack([starts, ends], 1)
+    x = np.concatenate([x, x[ends[::3]] + 0.3 * rng.normal(size=(len(ends[::3]), 3))])
+    edges[::3, 0] = len(x) - len(ends[::3]) + np.arange(len(ends[::3]))  # ... and every third from a free point
+    theirs = {(e, f) for e, (i, j) in enumerate(edges) for f, tri in enumerate(faces)
+              if not set(tri) & {i, j} and ipctk.is_edge_intersecting_triangle(x[i], x[j], *x[tri])}
+    ours = crossing_pairs(x, edges, faces)
+    assert len(theirs) >= n_segments // 10  # crossings well represented
+    assert {tuple(p) for p in ours.tolist()} == theirs
 
 
 def test_crossing_pairs_finds_a_segment_through_a_triangle_and_skips_neighbours():
