@@ -124,14 +124,19 @@ class CholeskySolver:
     def __init__(self, A_lower: sp.csc_matrix, ordering: str = "default", nonzeros: bool = True):
         self._ordering = ordering
         self._nonzeros = nonzeros
-        if nonzeros:  # what picking out the nonzeros needs: each entry's column, the diagonal
+        self.n_factorizations = 0
+        self.n_analyses = 0
+        self._adopt(A_lower)
+
+    def _adopt(self, A_lower: sp.csc_matrix) -> None:
+        """Take A's pattern as the fixed one; nothing analysed yet."""
+        self._indptr, self._indices = A_lower.indptr.copy(), A_lower.indices.copy()
+        if self._nonzeros:  # what picking out the nonzeros needs: each entry's column, the diagonal
             self._columns = np.repeat(np.arange(A_lower.shape[1]), np.diff(A_lower.indptr))
             self._diagonal = A_lower.indices == self._columns
         self._kept = None  # (nnz,) bool: the entries of the analysed pattern
         self._exact = True  # the next analysis: of the nonzeros alone, unless they are the kept ones
         self._factor = None
-        self.n_factorizations = 0
-        self.n_analyses = 0
 
     def restart(self) -> None:
         """A new time step: its first factorization analyses anew unless the nonzeros are
@@ -140,6 +145,10 @@ class CholeskySolver:
 
     def _part(self, A_lower: sp.csc_matrix) -> sp.csc_matrix:
         """The analysed part of A, analysed anew when a nonzero of A falls outside it."""
+        if not (np.array_equal(A_lower.indptr, self._indptr) and np.array_equal(A_lower.indices, self._indices)):
+            # Another pattern (scipy drops entries that cancel to zero in a sum: a conform
+            # Hessian lost one and 356 values met a 357-entry pattern): start over with it.
+            self._adopt(A_lower)
         if not self._nonzeros:
             if self._factor is None:
                 self._factor = _factor(A_lower, self._ordering)
