@@ -15,6 +15,8 @@ ipctk's exact predicates).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -22,17 +24,21 @@ LEAF = 4
 MISS, HIT, UNSURE = 0, 1, 2
 
 
-def build(x: np.ndarray, prims: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The tree over the primitives x[prims] (N, 2 or 3 corners): (node lows (2P, 3), node
-    highs (2P, 3), order (N,): the primitives leaf by leaf)."""
+class Tree(NamedTuple):
+    lo: np.ndarray  # (2P, 3) node box lows (node 0 unused)
+    hi: np.ndarray  # (2P, 3) node box highs
+    order: np.ndarray  # (N,) the primitives leaf by leaf
+
+
+def build(x: np.ndarray, prims: np.ndarray) -> Tree:
+    """The tree over the primitives x[prims] (N, 2 or 3 corners)."""
     lo, hi = _boxes(x, prims)
     centre = 0.5 * (lo + hi)
     low = centre.min(axis=0)
     span = np.maximum(centre.max(axis=0) - low, 1e-300)
     q = np.minimum((centre - low) / span * 1024, 1023).astype(np.uint64)
     order = np.argsort(_spread(q[:, 0]) | (_spread(q[:, 1]) << 1) | (_spread(q[:, 2]) << 2), kind="stable")
-    node_lo, node_hi = _nodes(lo, hi, order)
-    return node_lo, node_hi, order
+    return Tree(*_nodes(lo, hi, order), order)
 
 
 def _spread(v: np.ndarray) -> np.ndarray:

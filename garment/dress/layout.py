@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from sim.embedding import default_resolution, grid_faces, interpolation_matrix, points_at, sample_grid
 from sim.errors import InputError
-from sim.intersect import crossing_pairs
+from sim.intersect import Triangles, crossing_pairs
 from sim.seams.routes import through
 
 from ..io.arms import find_arms, raised
@@ -265,13 +265,14 @@ def seams_through_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -
     presses its panels into the body (a shoulder strap laid in front of the shoulder and
     its back partner behind it)."""
     index = {p.name: p for p in patches}
+    body = Triangles(body_V, body_F)
     found: dict[str, np.ndarray] = {}
     for s in seams:
         if s.patch_a not in index or s.patch_b not in index:
             continue
         a, b = points_at(index[s.patch_a].world, s.uv_a), points_at(index[s.patch_b].world, s.uv_b)
         far = np.linalg.norm(b - a, axis=1) > CLEARANCE
-        hit = through(a[far], b[far], body_V, body_F)
+        hit = through(a[far], b[far], body)
         if hit.any():
             found[s.name] = np.unique(0.5 * (a[far][hit] + b[far][hit]), axis=0)
     return found

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..intersect import crossing_pairs
+from ..intersect import Triangles, crossing_pairs
 
 MIN_GAP = 2e-3  # m: shorter paths are not checked (a closing seam lies on the cloth)
 DIRECTIONS = 12  # around each path
@@ -36,14 +36,10 @@ HEIGHTS = 0.01 * 1.5 ** np.arange(10)  # m: 1 to 38 cm from the path's midpoint
 ALONG = 0.5  # directions within 30 degrees of across the seam (|d . seam tangent| <= 0.5)
 
 
-def through(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(K,) bool: whether the segment a_k b_k passes through a triangle of (V, F)."""
+def through(a: np.ndarray, b: np.ndarray, body: Triangles) -> np.ndarray:
+    """(K,) bool: whether the segment a_k b_k passes through a triangle of the body."""
     hit = np.zeros(len(a), bool)
-    if len(a) == 0 or len(F) == 0:
-        return hit
-    x = np.concatenate([np.stack([a, b], axis=1).reshape(-1, 3), V])
-    edges = np.arange(2 * len(a)).reshape(-1, 2)
-    hit[crossing_pairs(x, edges, np.asarray(F) + 2 * len(a))[:, 0]] = True
+    hit[body.crossed(a, b)[:, 0]] = True
     return hit
 
 
@@ -63,29 +59,23 @@ def through_cloth(a: np.ndarray, b: np.ndarray, pieces: np.ndarray, x: np.ndarra
     return hit
 
 
-def body_edges(F: np.ndarray) -> np.ndarray:
-    """(E, 2) the unique edges of the triangles F."""
-    F = np.asarray(F)
-    return np.unique(np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
-
-
-def enclosed(a: np.ndarray, b: np.ndarray, p: np.ndarray, V: np.ndarray, E: np.ndarray) -> np.ndarray:
-    """(K,) bool: whether the body (V, its edges E: `body_edges`) passes through the
-    triangle a_k p_k b_k, that is, whether the loop from a over p to b and straight back
-    goes round it."""
+def enclosed(a: np.ndarray, b: np.ndarray, p: np.ndarray, body: Triangles) -> np.ndarray:
+    """(K,) bool: whether the body's edges pass through the triangle a_k p_k b_k, that
+    is, whether the loop from a over p to b and straight back goes round it."""
     hit = np.zeros(len(a), bool)
+    E = body.edges
     if len(a) == 0 or len(E) == 0:
         return hit
-    x = np.concatenate([np.stack([a, p, b], axis=1).reshape(-1, 3), V])
+    x = np.concatenate([np.stack([a, p, b], axis=1).reshape(-1, 3), body.V])
     triangles = np.arange(3 * len(a)).reshape(-1, 3)
     hit[crossing_pairs(x, E + 3 * len(a), triangles)[:, 1]] = True
     return hit
 
 
-def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
+def waypoints(a: np.ndarray, b: np.ndarray, body: Triangles,
               tangent: np.ndarray | None = None,
               previous: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Paths a_k -> b_k (K, 3) against the body (V, F), the seam running along tangent_k
+    """Paths a_k -> b_k (K, 3) against the body, the seam running along tangent_k
     (K, 3; zero or None: any direction): (routed (K,) bool, waypoints (K, 3)). A path is
     routed when it passes through the body and some waypoint clears it; waypoints of
     the others are their midpoints.
@@ -99,16 +89,14 @@ def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
     mid = 0.5 * (a + b)
     routed = np.zeros(len(a), bool)
     points = mid.copy()
-    through_now = through(a, b, V, F)
+    through_now = through(a, b, body)
     going = through_now.copy()
     side = np.zeros_like(a)
-    E = None  # the body's edges, found once where a loop is tested
     if previous is not None:
         kept = np.flatnonzero(np.isfinite(previous[:, 0]))
         side[kept] = previous[kept] - mid[kept]
         if len(kept):
-            E = body_edges(F)
-            going[kept] |= enclosed(a[kept], b[kept], previous[kept], V, E)
+            going[kept] |= enclosed(a[kept], b[kept], previous[kept], body)
     todo = np.flatnonzero(going)
     if len(todo) == 0:
         return routed, points
@@ -122,22 +110,21 @@ def waypoints(a: np.ndarray, b: np.ndarray, V: np.ndarray, F: np.ndarray,
     # has come clear, a loop that still goes round the body.
     same_side = np.einsum("tdk,tk->td", ring, side[todo]) >= 0.0
     wrap = ~through_now[todo]  # routed only because its loop goes round the body
-    found, w = _detour(a[todo], b[todo], ring, across & same_side, V, F, wrap, E)
+    found, w = _detour(a[todo], b[todo], ring, across & same_side, body, wrap)
     again = np.flatnonzero(~found & ~wrap & (across & ~same_side).any(axis=1))
     if len(again):  # no way round on its side: any side
-        found[again], w[again] = _detour(a[todo[again]], b[todo[again]], ring[again], across[again], V, F)
+        found[again], w[again] = _detour(a[todo[again]], b[todo[again]], ring[again], across[again], body)
     routed[todo] = found
     points[todo[found]] = w[found]
     return routed, points
 
 
-def _detour(a: np.ndarray, b: np.ndarray, ring: np.ndarray, allowed: np.ndarray, V: np.ndarray,
-            F: np.ndarray, wrap: np.ndarray | None = None,
-            E: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _detour(a: np.ndarray, b: np.ndarray, ring: np.ndarray, allowed: np.ndarray, body: Triangles,
+            wrap: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each path a_k -> b_k, the shortest waypoint at the least height (HEIGHTS) above
     its midpoint in an allowed direction of its ring (K, DIRECTIONS, 3) whose legs clear
-    the body, and for those in wrap (K,) bool whose loop goes round it (`enclosed`, on the
-    body's edges E): (found (K,) bool, waypoints (K, 3))."""
+    the body, and for those in wrap (K,) bool whose loop goes round it (`enclosed`):
+    (found (K,) bool, waypoints (K, 3))."""
     mid = 0.5 * (a + b)
     found = np.zeros(len(a), bool)
     points = mid.copy()
@@ -147,11 +134,11 @@ def _detour(a: np.ndarray, b: np.ndarray, ring: np.ndarray, allowed: np.ndarray,
         A = np.broadcast_to(a[todo, None, :], w.shape).reshape(-1, 3)
         B = np.broadcast_to(b[todo, None, :], w.shape).reshape(-1, 3)
         W = w.reshape(-1, 3)
-        legs = through(np.concatenate([A, W]), np.concatenate([W, B]), V, F)  # one body BVH for both legs
+        legs = through(np.concatenate([A, W]), np.concatenate([W, B]), body)
         blocked = (legs[:len(W)] | legs[len(W):]).reshape(len(todo), DIRECTIONS)
         if wrap is not None and wrap[todo].any():
             rows = np.repeat(wrap[todo], DIRECTIONS)
-            blocked.reshape(-1)[rows] |= ~enclosed(A[rows], B[rows], W[rows], V, E)
+            blocked.reshape(-1)[rows] |= ~enclosed(A[rows], B[rows], W[rows], body)
         length = np.linalg.norm(w - a[todo, None], axis=2) + np.linalg.norm(w - b[todo, None], axis=2)
         length[blocked | ~allowed[todo]] = np.inf
         best = np.argmin(length, axis=1)
@@ -165,11 +152,11 @@ def _detour(a: np.ndarray, b: np.ndarray, ring: np.ndarray, allowed: np.ndarray,
 
 
 def junction_waypoints(groups: list[np.ndarray], a: np.ndarray, b: np.ndarray, routed: np.ndarray,
-                       points: np.ndarray, V: np.ndarray, F: np.ndarray, previous: np.ndarray | None = None) -> None:
+                       points: np.ndarray, body: Triangles, previous: np.ndarray | None = None) -> None:
     """Samples that share a side point (each group: indices into a, b (K, 3) of the open
     samples at one junction) go round together: where any of a group is routed, all of it
     pulls to the one point, among heights above its corners' centroid in the directions
-    across each member's path, whose legs from every corner clear the body (V, F) and are
+    across each member's path, whose legs from every corner clear the body and are
     shortest in sum, on the side of the group's last waypoints (previous (K, 3), NaN: none)
     where there is one. routed (K,) and points (K, 3) are updated in place; a group with no
     such point keeps its samples' own waypoints."""
@@ -182,7 +169,7 @@ def junction_waypoints(groups: list[np.ndarray], a: np.ndarray, b: np.ndarray, r
         w = np.concatenate([(centre + HEIGHTS[:, None, None] * ring[None]).reshape(-1, 3), points[g][routed[g]]])
         A = np.repeat(corners, len(w), axis=0)
         W = np.tile(w, (len(corners), 1))
-        blocked = through(A, W, V, F).reshape(len(corners), len(w)).any(axis=0)
+        blocked = through(A, W, body).reshape(len(corners), len(w)).any(axis=0)
         length = np.linalg.norm(W - A, axis=1).reshape(len(corners), len(w)).sum(axis=0)
         length[blocked] = np.inf
         if previous is not None and np.isfinite(previous[g, 0]).any():

@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..intersect import Triangles
 from .energy import SeamEnergy
 from .routes import MIN_GAP, junction_waypoints, through_cloth, waypoints
 from .spec import SeamSpec
@@ -117,12 +118,13 @@ class Sewing:
         routed, points = np.zeros(len(a), bool), np.zeros_like(a)
         if len(check) and len(body_F):
             previous = np.where(e.routed[:, None], e.waypoints, np.nan)
-            routed[check], points[check] = waypoints(a[check], b[check], body_V, body_F, self._tangents(a)[check],
+            body = Triangles(body_V, body_F)  # one tree for every path tested this step
+            routed[check], points[check] = waypoints(a[check], b[check], body, self._tangents(a)[check],
                                                      previous[check])
             is_open = np.zeros(len(a), bool)
             is_open[check] = True
             groups = [g[is_open[g]] for g in self.junctions]
-            junction_waypoints([g for g in groups if len(g) > 1], a, b, routed, points, body_V, body_F, previous)
+            junction_waypoints([g for g in groups if len(g) > 1], a, b, routed, points, body, previous)
         if not routed.any() and not e.routed.any():
             return False
         return e.route(routed, points)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sim import bvh
-from sim.intersect import crossing_pairs
+from sim.intersect import Triangles, crossing_pairs
 
 
 def test_segment_triangle_verdict_agrees_with_ipctk():
@@ -89,3 +89,17 @@ def test_crossing_pairs_finds_a_segment_through_a_triangle_and_skips_neighbours(
     edges = np.array([[3, 4], [5, 6], [0, 7]])
     faces = np.array([[0, 1, 2]])
     assert crossing_pairs(x, edges, faces).tolist() == [[0, 0]]
+
+
+def test_a_body_tree_built_once_serves_every_segment_set():
+    """Triangles keeps one tree for the body; seam routes test ten sets of paths a step."""
+    rng = np.random.default_rng(7)
+    V, F = _sheet(10, 0.0, rng)
+    V[:, 2] = 0.2 * np.sin(6 * V[:, 0])
+    body = Triangles(V, F)
+    for _ in range(3):
+        p, q = rng.uniform(-0.2, 1.2, (200, 3)), rng.uniform(-0.2, 1.2, (200, 3))
+        x = np.concatenate([np.stack([p, q], 1).reshape(-1, 3), V])
+        fresh = crossing_pairs(x, np.arange(400).reshape(-1, 2), F + 400)
+        assert len(fresh) > 10
+        assert np.array_equal(body.crossed(p, q), fresh)

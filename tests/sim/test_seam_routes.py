@@ -10,6 +10,7 @@ from garment.io.obstacles import ObstacleGeometry
 from sim.materials import PRESETS
 from sim.model import ContactOptions, bspline_model
 from sim.patches import Patch
+from sim.intersect import Triangles
 from sim.seams.routes import junction_waypoints, through_cloth, waypoints
 from sim.seams.sewing import SewingOptions, _junctions
 from sim.seams.spec import SeamSpec
@@ -32,7 +33,7 @@ def test_a_path_through_a_ball_gets_a_waypoint_whose_legs_clear_it():
     V, F = np.asarray(ball.vertices), np.asarray(ball.faces, np.int32)
     a = np.array([[-0.2, 0.0, 0.0], [-0.2, 0.0, 0.15]])  # the first passes through the centre
     b = np.array([[0.2, 0.0, 0.0], [0.2, 0.0, 0.15]])  # the second passes 5 cm above the ball
-    routed, w = waypoints(a, b, V, F)
+    routed, w = waypoints(a, b, Triangles(V, F))
     assert routed.tolist() == [True, False]
     np.testing.assert_allclose(w[1], 0.5 * (a[1] + b[1]))
     # Both legs clear the ball (the icosphere lies within 0.5 % of the sphere), by a detour
@@ -41,7 +42,7 @@ def test_a_path_through_a_ball_gets_a_waypoint_whose_legs_clear_it():
         assert _segment_distance(np.zeros(3), end, w[0]) > 0.99 * r
     assert 0.2 * np.tan(np.pi / 6) - 1e-9 < np.linalg.norm(w[0]) < 0.18
     # A seam running along z goes round across itself (within 30 degrees of y), not along.
-    routed, w = waypoints(a[:1], b[:1], V, F, tangent=np.array([[0.0, 0.0, 1.0]]))
+    routed, w = waypoints(a[:1], b[:1], Triangles(V, F), tangent=np.array([[0.0, 0.0, 1.0]]))
     assert routed[0] and abs(w[0, 2]) <= 0.5 * np.linalg.norm(w[0]) + 1e-12
     for end in (a[0], b[0]):
         assert _segment_distance(np.zeros(3), end, w[0]) > 0.99 * r
@@ -55,14 +56,14 @@ def test_a_routed_path_keeps_its_side_of_the_ball_once_it_comes_clear_on_the_oth
     ball = trimesh.creation.icosphere(subdivisions=3, radius=r)
     V, F = np.asarray(ball.vertices), np.asarray(ball.faces, np.int32)
     a, b = np.array([[-0.15, 0.0, -0.12]]), np.array([[0.15, 0.0, -0.12]])
-    routed, w = waypoints(a, b, V, F)
+    routed, w = waypoints(a, b, Triangles(V, F))
     assert not routed[0]  # clear underneath
-    routed, w = waypoints(a, b, V, F, previous=np.array([[0.0, 0.0, 0.2]]))
+    routed, w = waypoints(a, b, Triangles(V, F), previous=np.array([[0.0, 0.0, 0.2]]))
     assert routed[0] and w[0, 2] > r
     for end in (a[0], b[0]):
         assert _segment_distance(np.zeros(3), end, w[0]) > 0.99 * r
     # Routed under it before, the same path is simply clear.
-    routed, _ = waypoints(a, b, V, F, previous=np.array([[0.0, 0.0, -0.2]]))
+    routed, _ = waypoints(a, b, Triangles(V, F), previous=np.array([[0.0, 0.0, -0.2]]))
     assert not routed[0]
 
 
@@ -77,10 +78,10 @@ def test_seams_meeting_at_a_junction_go_round_a_ball_together():
     P = np.array([[-0.15, 0.0, 0.03], [0.15, 0.0, 0.03], [-0.15, 0.0, -0.03], [0.15, 0.0, -0.03]])
     pairs = np.array([[0, 1], [2, 3], [0, 2], [1, 3]])
     a, b = P[pairs[:, 0]], P[pairs[:, 1]]
-    routed, w = waypoints(a, b, V, F)
+    routed, w = waypoints(a, b, Triangles(V, F))
     assert routed.tolist() == [True, True, False, False]
     assert w[0, 2] > 0.05 and w[1, 2] < -0.05  # over and under
-    junction_waypoints([np.arange(4)], a, b, routed, w, V, F)
+    junction_waypoints([np.arange(4)], a, b, routed, w, Triangles(V, F))
     assert routed.all()
     np.testing.assert_array_equal(w, np.tile(w[0], (4, 1)))  # one point for all
     for corner in P:
@@ -166,6 +167,6 @@ def test_a_seam_closes_over_a_wall_between_its_panels_not_into_it(monkeypatch):
     gap, top = _sew_over_a_wall()
     assert gap < 1e-3 and top > 0.0, (gap, top)  # closed, over the wall's top (z = 0)
     # Pulled straight (no waypoints), the same seam presses its panels into the wall.
-    monkeypatch.setattr(sewing_module, "waypoints", lambda a, b, V, F, t, p: (np.zeros(len(a), bool), 0.5 * (a + b)))
+    monkeypatch.setattr(sewing_module, "waypoints", lambda a, b, body, t, p: (np.zeros(len(a), bool), 0.5 * (a + b)))
     gap, top = _sew_over_a_wall()
     assert gap > 0.02 and top < 0.0, (gap, top)
