@@ -134,9 +134,9 @@ def _cross(u, v):
 
 @njit(cache=True, inline="always")
 def verdict(p, q, a, b, c, unsure):
-    """Does segment p q cross triangle a b c, ends and borders included (Moller-Trumbore,
-    as sim/intersect.py's segments_cross_triangles): MISS, HIT or UNSURE. Points are
-    3-tuples or rows (no arrays are made: this runs once per candidate pair)."""
+    """Does segment p q cross triangle a b c, ends and borders included (Moller-Trumbore):
+    MISS, HIT or UNSURE, where ipctk's exact test must decide. Points are 3-tuples or rows
+    (no arrays are made: this runs once per candidate pair)."""
     d = _sub(q, p)
     e1, e2 = _sub(b, a), _sub(c, a)
     h = _cross(d, e2)
@@ -180,23 +180,41 @@ def _grow(out, k):
 
 
 @njit(cache=True)
-def segments_through_tree(x, edges, faces, node_lo, node_hi, order, pad, unsure):
-    """Segments x[edges] (E, 2) against the tree over the triangles x[faces] (`build`):
-    (K, 3) rows (edge, face, HIT or UNSURE); pairs sharing a vertex are left out."""
+def crossings(x, edges, faces, node_lo, node_hi, order, pad, unsure, over_faces):
+    """Segments x[edges] (E, 2) against triangles x[faces] (F, 3), the tree (`build`) over
+    the faces (over_faces: each segment walks it) or over the segments (each triangle walks
+    it with its box and plane): (K, 3) rows (edge, face, HIT or UNSURE); pairs sharing a
+    vertex are left out."""
     P = len(node_lo) // 2
     n = len(order)
     out = np.empty((64, 3), np.int64)
     k = 0
     stack = np.empty(128, np.int64)
-    for e in range(len(edges)):
-        i0, i1 = edges[e, 0], edges[e, 1]
-        p, q = x[i0], x[i1]
+    tlo, thi = np.empty(3), np.empty(3)
+    e = f = 0
+    p = q = a = x[0]
+    normal = (0.0, 0.0, 0.0)
+    for walker in range(len(edges) if over_faces else len(faces)):
+        if over_faces:
+            e = walker
+            p, q = x[edges[e, 0]], x[edges[e, 1]]
+        else:
+            f = walker
+            a, b, c = x[faces[f, 0]], x[faces[f, 1]], x[faces[f, 2]]
+            for d in range(3):
+                tlo[d] = min(a[d], b[d], c[d])
+                thi[d] = max(a[d], b[d], c[d])
+            normal = _cross(_sub(b, a), _sub(c, a))
         top = 0
         stack[0] = 1
         while top >= 0:
             node = stack[top]
             top -= 1
-            if not _segment_meets_box(p, q, node_lo[node], node_hi[node], pad):
+            if over_faces:
+                meets = _segment_meets_box(p, q, node_lo[node], node_hi[node], pad)
+            else:
+                meets = _triangle_meets_box(tlo, thi, a, normal, node_lo[node], node_hi[node], pad)
+            if not meets:
                 continue
             if node < P:
                 stack[top + 1] = 2 * node
@@ -204,54 +222,14 @@ def segments_through_tree(x, edges, faces, node_lo, node_hi, order, pad, unsure)
                 top += 2
                 continue
             for j in range((node - P) * LEAF, min(n, (node - P + 1) * LEAF)):
-                f = order[j]
-                tri = faces[f]
+                if over_faces:
+                    f = order[j]
+                else:
+                    e = order[j]
+                i0, i1, tri = edges[e, 0], edges[e, 1], faces[f]
                 if _share(i0, i1, tri):
                     continue
-                v = verdict(p, q, x[tri[0]], x[tri[1]], x[tri[2]], unsure)
-                if v != MISS:
-                    out = _grow(out, k)
-                    out[k, 0], out[k, 1], out[k, 2] = e, f, v
-                    k += 1
-    return out[:k]
-
-
-@njit(cache=True)
-def triangles_through_tree(x, edges, faces, node_lo, node_hi, order, pad, unsure):
-    """Triangles x[faces] (F, 3) against the tree over the segments x[edges] (`build`):
-    (K, 3) rows (edge, face, HIT or UNSURE); pairs sharing a vertex are left out."""
-    P = len(node_lo) // 2
-    n = len(order)
-    out = np.empty((64, 3), np.int64)
-    k = 0
-    stack = np.empty(128, np.int64)
-    tlo = np.empty(3)
-    thi = np.empty(3)
-    for f in range(len(faces)):
-        tri = faces[f]
-        a, b, c = x[tri[0]], x[tri[1]], x[tri[2]]
-        for d in range(3):
-            tlo[d] = min(a[d], b[d], c[d])
-            thi[d] = max(a[d], b[d], c[d])
-        normal = _cross(_sub(b, a), _sub(c, a))
-        top = 0
-        stack[0] = 1
-        while top >= 0:
-            node = stack[top]
-            top -= 1
-            if not _triangle_meets_box(tlo, thi, a, normal, node_lo[node], node_hi[node], pad):
-                continue
-            if node < P:
-                stack[top + 1] = 2 * node
-                stack[top + 2] = 2 * node + 1
-                top += 2
-                continue
-            for j in range((node - P) * LEAF, min(n, (node - P + 1) * LEAF)):
-                e = order[j]
-                i0, i1 = edges[e, 0], edges[e, 1]
-                if _share(i0, i1, tri):
-                    continue
-                v = verdict(x[i0], x[i1], a, b, c, unsure)
+                v = verdict(x[i0], x[i1], x[tri[0]], x[tri[1]], x[tri[2]], unsure)
                 if v != MISS:
                     out = _grow(out, k)
                     out[k, 0], out[k, 1], out[k, 2] = e, f, v

@@ -32,12 +32,9 @@ def crossing_pairs(x: np.ndarray, edges: np.ndarray, faces: np.ndarray, face_tre
         return np.zeros((0, 2), np.int64)
     # The tree goes over the larger set: few long seam paths walk a body's triangles; a
     # body's many short edges are found under a few large loop triangles.
-    if face_tree is not None or len(faces) >= len(edges):
-        tree = face_tree or bvh.build(x, faces)
-        found = bvh.segments_through_tree(x, edges, faces, *tree, PAD * _extent(tree), UNSURE)
-    else:
-        tree = bvh.build(x, edges)
-        found = bvh.triangles_through_tree(x, edges, faces, *tree, PAD * _extent(tree), UNSURE)
+    over_faces = face_tree is not None or len(faces) >= len(edges)
+    tree = face_tree or bvh.build(x, faces if over_faces else edges)
+    found = bvh.crossings(x, edges, faces, *tree, PAD * _extent(tree), UNSURE, over_faces)
     keep = found[:, 2] == bvh.HIT
     for k in np.flatnonzero(~keep):
         (i, j), (a, b, c) = edges[found[k, 0]], faces[found[k, 1]]
