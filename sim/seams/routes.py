@@ -48,11 +48,7 @@ def through_cloth(a: np.ndarray, b: np.ndarray, pieces: np.ndarray, x: np.ndarra
     """(K,) bool: whether the segment a_k b_k passes through a cloth triangle (x[faces],
     of piece face_piece) of a piece other than its own two (pieces (K, 2))."""
     hit = np.zeros(len(a), bool)
-    if len(a) == 0 or len(faces) == 0:
-        return hit
-    pts = np.concatenate([np.stack([a, b], axis=1).reshape(-1, 3), x])
-    edges = np.arange(2 * len(a)).reshape(-1, 2)
-    pairs = crossing_pairs(pts, edges, np.asarray(faces) + 2 * len(a))
+    pairs = Triangles(x, faces).crossed(a, b)
     if len(pairs):
         other = (face_piece[pairs[:, 1], None] != pieces[pairs[:, 0]]).all(axis=1)
         hit[pairs[other, 0]] = True
