@@ -48,8 +48,8 @@ from .mips import refine as mips_refine
 from .pleats import fold_panels, fold_span, pleat_faces
 from .quality import folded, lift_strain, polyline_distance, report
 from .seams import below_resolution, map_seam, seam_hints, short_seams
-from .split import (PINCH, SPLIT_IMBALANCE, darts_of, imbalance, necks_of, notches_of, split_panel, split_seams,
-                    trims_of)
+from .split import (PINCH, SPLIT_IMBALANCE, TRIM_WIDTH, darts_of, imbalance, necks_of, notches_of, split_panel,
+                    split_seams, trims_of)
 
 
 @dataclass
@@ -501,10 +501,18 @@ def rescue_splits(panel: Panel, outline: Outline, seams: list[PanelSeam], option
         if split is not None:
             yield split
     for neck in necks_of(outline, NECK_LOBE * options.knot_span):
-        # A pinch is cut off on both sides (split.trims_of), a neck is cut across.
-        split = split_panel(panel, outline, trims_of(outline, neck) if neck.depth < PINCH else [neck])
-        if split is not None:
-            yield split
+        # A neck is cut across; a pinch (narrower than any cloth) is cut off on both
+        # sides (split.trims_of), and so, next, is a neck under TRIM_WIDTH: cut across it
+        # (where the cut can be made at all), its pieces keep a side of a few mm against
+        # their others and fold (jumpsuit_777_03's hood, whose neckline swings within
+        # 4.9 mm of its front edge).
+        cuts = [[neck]] if neck.depth >= PINCH else []
+        if neck.depth < TRIM_WIDTH:
+            cuts.append(trims_of(outline, neck))
+        for cut in cuts:
+            split = split_panel(panel, outline, cut) if cut else None
+            if split is not None:
+                yield split
 
 
 # Peak memory of conforming one panel (garment conform, a 1 m square, peak resident set):

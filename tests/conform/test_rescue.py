@@ -126,3 +126,36 @@ def test_a_pinched_panel_loses_the_sliver_at_its_pinch_and_both_lobes_conform(tm
     assert not [s for s in ps.seams if ".cut" in s.name]  # ... and nothing sews across it
     # The sliver is two thin triangles (~15 cm^2 of 2,200): the pieces keep 99 %.
     assert -1.5 < ps.splits["front"]["area_error_gauss2_pct"] < 0
+
+
+# jumpsuit_777_03's right hood (GarmentCode's sampler, seed 777; cm): its neckline, two
+# cubic curves, swings up into an S whose far side comes within 4.9 mm of the hood's
+# straight front edge. The flap below that neck hangs on by 4.9 mm.
+HOOD = {"translation": [0, 0, 0], "rotation": [0, 0, 0],
+        "vertices": [[-0.7680482086473797, -0.4767339684927805], [4.6190296611907256, 15.879496039367144],
+                     [8.743018997592188, -3.966023532560566], [9.721657850376856, 49.02538160240815],
+                     [4.953609641729476, 49.02538160240815]],
+        "edges": [{"endpoints": [0, 1], "curvature": {"type": "cubic", "params": [
+                      [0.19619729665320243, -0.4505397071336339], [0.7984764403920477, 0.43434028095289484]]}},
+                  {"endpoints": [1, 2], "curvature": {"type": "cubic", "params": [
+                      [0.1560547814152252, 0.5564645417505979], [0.8421109736826059, -0.5514296841342021]]}},
+                  {"endpoints": [2, 3]}, {"endpoints": [3, 4]},
+                  {"endpoints": [4, 0], "curvature": {"type": "quadratic", "params": [[0.2, -0.5]]}}]}
+
+
+def test_a_neck_a_few_mm_wide_that_cannot_be_cut_across_is_trimmed_off_both_sides(tmp_path):
+    from conform.split import PINCH, TRIM_WIDTH
+
+    path = tmp_path / "hood.json"
+    path.write_text(json.dumps({"pattern": {"panels": {"hood": HOOD}, "stitches": []},
+                                "properties": {"units_in_meter": 100, "curvature_coords": "relative"}}))
+    panels, seams = read_garmentcode(path)
+    neck = necks_of(extract_outline(panels[0]), 0.16)[0]
+    assert PINCH < neck.depth < TRIM_WIDTH  # too wide for a pinch, too narrow to cut across
+    whole, whole_folds = conformed(panels, seams, "never")
+    assert whole.failures or whole_folds
+    ps, folds = conformed(panels, seams, "auto")
+    assert not ps.failures and not folds
+    assert len(ps.patches) == 2 and not [s for s in ps.seams if ".cut" in s.name]
+    # The sliver between the trims (at most TRIM_WIDTH across) is under 1 % of the hood.
+    assert -1.0 < ps.splits["hood"]["area_error_gauss2_pct"] < 0
