@@ -250,3 +250,42 @@ def test_a_skirt_round_the_body_caught_in_the_side_seams_stays():
     assert out_of_seam_paths(patches, seams, V, F) == {}
     for p, w in zip(skirt, before):
         np.testing.assert_array_equal(p.world, w)
+
+
+def test_a_panel_a_lift_lays_in_a_seams_paths_moves_out_of_them():
+    """Straps round a shoulder (a box 1.40-1.45 m high) are lifted 4 cm over it, and with
+    them their side seam, which then runs through a sleeve laid just above its paths
+    (upper_garment_777_03's torso, lifted over its shoulders, its side seams over the front
+    sleeves moved out of them): the sleeve moves on, out of the lifted paths."""
+    from garment.dress.layout import CAUGHT, lift_clear_of_paths, seams_through_cloth
+    from sim.seams.spec import PatchSeam
+
+    shoulder = trimesh.creation.box(extents=(0.3, 0.2, 0.5))
+    shoulder.apply_translation([0.0, 0.0, 1.2])  # top at 1.45 m
+    V, F = np.asarray(shoulder.vertices), np.asarray(shoulder.faces, np.int32)
+    front = Patch.rectangle("front", (0.5, 0.3), (8, 6), origin=(-0.25, -0.15, 1.12), axis_u=(1, 0, 0),
+                            axis_v=(0, 0, 1))
+    back = Patch.rectangle("back", (0.5, 0.3), (8, 6), origin=(-0.25, 0.15, 1.12), axis_u=(1, 0, 0),
+                           axis_v=(0, 0, 1))
+    # The sleeve in the plane y = 0 beside the box, from 5 mm above the side seam's top.
+    sleeve = Patch.rectangle("sleeve", (0.3, 0.2), (7, 5), origin=(0.2, 0.0, 1.425), axis_u=(1, 0, 0),
+                             axis_v=(0, 0, 1))
+
+    def side(p, u, k=31):  # a path every centimetre
+        return np.c_[np.full(k, u), np.linspace(0, p.shape[1] - 2, k)]
+
+    top = np.c_[np.linspace(0, 6, 7), np.full(7, 4.0)]
+    seams = [PatchSeam("shoulder", "front", "back", top, top.copy(), [], []),
+             PatchSeam("side", "front", "back", side(front, 6.0), side(back, 6.0), [], [])]
+    patches = [front, back, sleeve]
+    assert not seams_through_cloth(patches, seams)
+    before = sleeve.world.copy()
+    lifted, moved = lift_clear_of_paths(patches, seams, V, V, F)
+    assert lifted == pytest.approx({"front": 0.04, "back": 0.04})
+    assert set(moved) == {"sleeve"} and 0 < moved["sleeve"] <= 0.1
+    assert np.linalg.norm((sleeve.world - before).reshape(-1, 3), axis=1).max() == pytest.approx(moved["sleeve"])
+    assert max(seams_through_cloth(patches, seams).values(), default=0) < CAUGHT
+    # Without the sleeve there, the lift moves nothing else.
+    for p in (front, back):
+        p.world[..., 2] -= 0.04
+    assert lift_clear_of_paths([front, back], seams, V, V, F) == (pytest.approx({"front": 0.04, "back": 0.04}), {})
