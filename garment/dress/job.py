@@ -51,7 +51,7 @@ from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .drawstring import body_mesh, draw_in
 from .frame import BodyFrame, pattern_up, read_body
 from .girth import loose_opening, trunk_centre
-from .layout import PlacementError, arms_out_of_the_way, lift_clear_of_paths, out_of_seam_paths, separate
+from .layout import PlacementError, arms_out_of_the_way, lift_over_body, out_of_seam_paths, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 
@@ -202,6 +202,8 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
         p.world = np.ascontiguousarray(to_scene_frame(p.world, 1.0, up))
     if up == "y":
         fit_to_body(ps.patches, body_V)
+    # Seams pulled shut through the body (a strap laid in front of a shoulder, its partner
+    # behind) press the cloth into it while the body grows back: over it, they close.
     panels = [ps.panel_of(p.name) for p in ps.patches]
     # A panel laid inside another seam's closing paths would be sewn into that seam.
     out = out_of_seam_paths(ps.patches, ps.seams, body_V, body_F, panels)
@@ -209,10 +211,7 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     angle, arms = arms_out_of_the_way(ps.patches, ps.seams, body_V, body_F)
     grow = (0.5 * options.sew_time, options.sew_time)
     start = ObstacleGeometry("body", body_V, body_F, raise_arms=angle, grow=grow, arms=arms).at(0.0)
-    # Seams pulled shut through the body (a strap laid in front of a shoulder, its partner
-    # behind) press the cloth into it while the body grows back: over it, they close.
-    lifted, again = lift_clear_of_paths(ps.patches, ps.seams, start, body_V, body_F, panels)
-    out = {n: out.get(n, 0.0) + again.get(n, 0.0) for n in out.keys() | again.keys()}  # the moves' lengths
+    lifted = lift_over_body(ps.patches, ps.seams, start, body_F, panels)
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, raise_arms=angle, grow=grow, arms=arms)
     layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=panels)
     layout.lifted, layout.raise_arms, layout.out_of_paths = lifted, angle, out

@@ -439,17 +439,6 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
     return moved
 
 
-def lift_clear_of_paths(patches, seams, start_V: np.ndarray, body_V: np.ndarray, body_F: np.ndarray,
-                        panels=None) -> tuple[dict[str, float], dict[str, float]]:
-    """lift_over_body against the body as sewing starts (`start_V`), then out_of_seam_paths
-    again against the whole body: a lift can lay a seam's paths across a panel moved out
-    of them (upper_garment_777_03's torso, lifted 4 cm, its side seams over the front
-    sleeves moved out of them). Returns (each lifted patch's lift, each patch's further
-    move out of the paths), m."""
-    lifted = lift_over_body(patches, seams, start_V, body_F, panels)
-    return lifted, out_of_seam_paths(patches, seams, body_V, body_F, panels) if lifted else {}
-
-
 def _merged(sets: list[set[str]]) -> list[set[str]]:
     """The sets, those that share a member joined."""
     out: list[set[str]] = []
