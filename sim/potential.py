@@ -33,8 +33,10 @@ class IncrementalPotential:
         self.moved_entries = 0  # off-pattern contact entries moved to the diagonal, last assembly
         self.correction = None
         self.variable = [e for e in energies if e.variable_pattern]
-        # Without contact the whole pattern fills: factor it as is, analysed once.
-        self.solver = CholeskySolver(self.matrix, nonzeros=bool(self.variable))
+        # Without contact the whole pattern fills: factor it as is, analysed once, in a
+        # METIS ordering (the hanging sheet at 75^2: 5.9M values in L against AMD's 6.5M).
+        self.solver = CholeskySolver(self.matrix, ordering="default" if self.variable else "metis",
+                                     nonzeros=bool(self.variable))
         self.drive = None  # sim.contact.drive.BodyDrive when bodies move
         self.projection_backoff = (0, 1)  # Newton's projection-on-demand state (newton.py)
         # Called with each accepted Newton iterate; True when it changed an energy (the
