@@ -389,8 +389,17 @@ class Model:
         None without contact seams."""
         if self.barrier is None or len(self.seam_contact.pairs) == 0:
             return None
-        reach = self.sewing.options.block_reach * self.barrier.dhat
-        return self.seam_contact.update_blocked(C, self.barrier.contact, reach)
+        return self.seam_contact.update_blocked(C, self.barrier.contact, self._block_reach())
+
+    def held_pairs(self, C: np.ndarray) -> np.ndarray | None:
+        """(P,) blocked pairs the seams pull only weakly (SeamContact.to_hold), or None
+        without contact seams; after blocked_pairs."""
+        if self.barrier is None or len(self.seam_contact.pairs) == 0:
+            return None
+        return self.seam_contact.to_hold(C, self.barrier.contact, self._block_reach())
+
+    def _block_reach(self) -> float:
+        return self.sewing.options.block_reach * self.barrier.dhat
 
     def screened_samples(self, C: np.ndarray) -> np.ndarray | None:
         """(S,) seam samples whose path passes through other cloth during the ramp

@@ -28,7 +28,8 @@ def step(model: Model, state: State) -> StepStats:
     blocked = model.blocked_pairs(state.C)
     stats.extra["seam_pairs_blocked"] = float(blocked.sum()) if blocked is not None else 0.0
     screened = model.screened_samples(state.C)
-    if sewing is not None and sewing.hold(state.C, state.t, state.pleat_faces, blocked, screened):
+    held = model.held_pairs(state.C)
+    if sewing is not None and sewing.hold(state.C, state.t, state.pleat_faces, held, screened):
         model.potential.refresh_constant()
     if sewing is not None and model.barrier is not None:
         contact = model.barrier.contact

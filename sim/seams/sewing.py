@@ -94,16 +94,16 @@ class Sewing:
             return True
         return False
 
-    def hold(self, C: np.ndarray, t: float, released: np.ndarray, blocked_pairs: np.ndarray | None,
+    def hold(self, C: np.ndarray, t: float, released: np.ndarray, held_pairs: np.ndarray | None,
              screened: np.ndarray | None = None) -> bool:
-        """Pull weakly the samples whose nearest matched pair is blocked (blocked_pairs
-        (P,) bool, None without contact), not at all those of seams still waiting for
+        """Pull weakly the samples whose nearest matched pair is held (held_pairs (P,)
+        bool, None without contact: SeamContact.to_hold), not at all those of seams still waiting for
         their pleat's tucks, nor during the ramp those whose path passes through other
         cloth (screened (S,) bool: `screened`), fully the others. `released` (F,) is
         updated in place. Returns whether the energy changed."""
         held = np.zeros(self.energy.active.size, bool)
-        if blocked_pairs is not None:
-            held = np.append(blocked_pairs, False)[self.sample_pair]
+        if held_pairs is not None:
+            held = np.append(held_pairs, False)[self.sample_pair]
         waiting = self._waiting_samples(C, t, released)
         if screened is not None:
             waiting |= screened
