@@ -10,9 +10,13 @@ Contact is never switched off around a seam, so a seam that cannot close without
 passing through cloth stays open instead: a nearly closed open pair that could not be
 sewn shut right now without cloth passing through cloth or body (a pleat's layer folded
 between or against the two sides, a dart's folded neighbours within d_hat / 2) is BLOCKED
-until it could (`update_blocked`, every step). The seam energy pulls blocked pairs only
-weakly (SewingOptions.held_fraction, sim/seams/sewing.py): pulling harder would only press the layers together without
-bound (dress_knife's knife pleats: contacts at 40 nm, Newton at its cap down to dt / 16).
+until it could (`update_blocked`, every step). The seam energy pulls a blocked pair only
+weakly (SewingOptions.held_fraction, sim/seams/sewing.py) where cloth lies between its two
+sides, or once they are within HOLD_BELOW of the block reach (`to_hold`): pulling harder
+would only press the layers together without bound (dress_knife's knife pleats: contacts
+at 40 nm, Newton at its cap down to dt / 16). With nothing between them it pulls fully:
+such a merge crosses because the jump to the midpoint sweeps the pair's triangles through
+cloth folded nearby (a dart's tip), and the pull closes what the jump could not.
 A refused merge is not final either: kept apart for good, a pair refused once while a
 layer slid past stayed open after it had gone (dress_knife: seam47 5.4 mm).
 """

@@ -12,8 +12,9 @@ through another piece's cloth does not pull while the seams stiffen (`screened`)
 between its sides would be pinned there.
 
 Once a matched contact-vertex pair is nearly closed it merges (sim/seams/contact.py); a
-pair that cannot merge without cloth passing through cloth is blocked, and the samples
-nearest to it pull with `held_fraction` of the stiffness. A seam sewn onto a folded
+pair that cannot merge without cloth passing through cloth is blocked, and where cloth
+lies between its sides the samples nearest to it pull with `held_fraction` of the
+stiffness (SeamContact.to_hold). A seam sewn onto a folded
 pleat's face (a waistband) pulls only once the pleat's tucks are within `pleat_wait_gap`,
 or from `pleat_wait_end` on: pulled earlier, the other panel comes down into the fold and
 its layers hold a tuck open (docs/findings.md, "Folded pleats"). A gathered seam (one side
@@ -47,7 +48,7 @@ class SewingOptions:
     multipliers: bool = True  # augmented-Lagrangian multipliers once at full stiffness
     multiplier_step: float = 2.0  # one multiplier update adds at most this many E h
     block_reach: float = 10.0  # d_hat: open pairs closer than this are tested for blocking
-    held_fraction: float = 0.01  # of the stiffness, on samples next to a blocked pair
+    held_fraction: float = 0.01  # of the stiffness, on samples next to a held blocked pair (to_hold)
     pleat_wait_gap: float = 3e-3  # m, tucks this close release a pleat face's seam
     pleat_wait_end: float = 0.6  # s, or from this time on
     # Newton iterations per quasi-static sewing step: its steps are a path to the sewn
