@@ -377,7 +377,7 @@ class SewingSpec:
                                  "a crossing")
     held_fraction: float = key(0.01, ge=0, le=1,
                                doc="share of the seam stiffness kept by samples whose nearest matched pair is "
-                                   "blocked")
+                                   "blocked with cloth between its sides, or within 0.5 mm")
     pleat_wait_gap: float = key(3e-3, unit="mm", gt=0,
                                 doc="a seam sewn onto a folded pleat's face ([[garment]] pleat_wait) pulls once the "
                                     "pleat's tucks are within this gap, or from pleat_wait_end on")
