@@ -114,20 +114,31 @@ class SeamContact:
         # A layer's edge lying along the segment (a seam's end pair at a pleat's corner)
         # is not a crossing: a pair whose neighbour along the seam (the next or previous
         # pair, its vertices joined to this pair's by mesh edges) is layered is too.
+        free = blocked[~out[blocked]]
+        pair = np.concatenate([free, free])
+        next_to = np.concatenate([free - 1, free + 1])
+        keep = (next_to >= 0) & (next_to < len(out))
+        pair, next_to = pair[keep], next_to[keep]
+        keep = out[next_to]
+        pair, next_to = pair[keep], next_to[keep]
+        if len(pair) == 0:
+            return out
+        n = mesh.n_cloth  # edge keys lo * n + hi over the cloth edges (labels are cloth vertices)
+        E = mesh.mesh.edges
+        E = np.sort(E[(E < n).all(axis=1)], axis=1).astype(np.int64)
+        keys = E[:, 0] * n + E[:, 1]
+        L = self.labels[self.pairs].astype(np.int64)
+        joined = np.ones(len(pair), bool)
+        for side in (0, 1):
+            u, v = L[pair, side], L[next_to, side]
+            joined &= np.isin(np.minimum(u, v) * n + np.maximum(u, v), keys)
         spread = out.copy()
-        if not out.any() or out[blocked].all():
-            return spread
-        edges = {tuple(e) for e in np.sort(mesh.mesh.edges, axis=1).tolist()}
-        labels = self.labels[self.pairs]
-        for i in blocked[~out[blocked]]:
-            for j in (i - 1, i + 1):
-                if 0 <= j < len(out) and out[j] and all(
-                        tuple(sorted((int(labels[i, s]), int(labels[j, s])))) in edges for s in (0, 1)):
-                    spread[i] = True
+        spread[pair[joined]] = True
         return spread
 
     def held_open(self) -> np.ndarray:
-        """(P,) pairs the seam pulls only weakly: BLOCKED."""
+        """(P,) pairs held open, not merged: BLOCKED (the seam pulls only those in
+        `to_hold` weakly)."""
         return self.state == BLOCKED
 
     def rows(self, mesh: ContactMesh) -> sp.csr_matrix:

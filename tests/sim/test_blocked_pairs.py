@@ -6,7 +6,6 @@ refuse the one-pair merge, dress_knife's seam47)."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import sim.seams.contact as seams_mod
 from sim.materials import PRESETS
@@ -15,6 +14,8 @@ from sim.patches import Patch
 from sim.simulator import Simulator
 
 from tests.support.scenes import edge_seam, panel, two_panels
+
+HOLD_GAP = 1e-4  # m: the sides' gap once moved together, below HOLD_BELOW x reach
 
 
 def _with_layer(gap: float) -> Simulator:
@@ -72,6 +73,3 @@ def test_the_seam_pulls_blocked_pairs_fully_until_nearly_closed_then_holds_them(
     held = sim.model.held_pairs(C)
     assert (sc.gaps(C) < seams_mod.HOLD_BELOW * reach).all()
     assert held.all()
-
-
-HOLD_GAP = 1e-4  # m: the sides' gap after the shift above, below HOLD_BELOW x reach
