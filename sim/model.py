@@ -316,10 +316,6 @@ class Model:
         if self.barrier is not None:
             state.obstacle_vertices = self.barrier.contact.obstacle_vertices.copy()
             state.kappa = float(self.barrier.kappa)
-            contact = self.barrier.contact
-            if contact.focused is not None:
-                state.contact_region = contact.body_ids.copy()
-                state.contact_region_C, state.contact_region_bound = contact.focused[0].copy(), contact.focused[1]
         if self.drive is not None:
             state.drive_target = self.drive.target.copy()
         if self.stiffness is not None:
@@ -347,9 +343,6 @@ class Model:
             # (left where they are, the sets still hold: they are keyed by C).
             self.barrier.contact.move_obstacles(np.array(state.obstacle_vertices, float))
             self.barrier.kappa = state.kappa
-            if state.contact_region is not None:
-                self.barrier.contact.keep_focus(state.contact_region,
-                                                (state.contact_region_C, state.contact_region_bound))
         if self.drive is not None and state.drive_target is not None:
             self.drive.target = np.array(state.drive_target, float)
         if self.stiffness is not None and state.stiffness_floor is not None:

@@ -3,8 +3,7 @@
 The model (sim/model.py) is rebuilt from its scene and never changes; a `State` holds the
 rest: control points C and velocities V, time t, the step counter, the current time step,
 the obstacle vertices (bodies lag behind their targets when cloth blocks them) and their
-targets, the obstacle region kept in the contact mesh, the barrier stiffness kappa and
-the adaptive-stiffness memory, Newton's
+targets, the barrier stiffness kappa and the adaptive-stiffness memory, Newton's
 projection back-off, the seams' multipliers, which matched seam vertices are sewn, and
 which pleat faces no longer wait. What each step rebuilds from these (inertia target,
 friction's lagged contacts, body targets from t) is not stored, so loading a state makes
@@ -26,9 +25,7 @@ import numpy as np
 from .errors import InputError, printable
 from .files import atomic_write, read_npz
 
-# Bump when a field changes meaning or a new one must be present. A field added as optional
-# reads as None from an older file (its run then rebuilds what the field kept).
-FORMAT = 2
+FORMAT = 2  # bump when the set of fields changes
 
 
 @dataclass
@@ -45,9 +42,6 @@ class State:
     kappa: float | None = None  # Pa
     stiffness_floor: float | None = None  # Pa
     stiffness_prev_d: float | None = None  # m
-    contact_region: np.ndarray | None = None  # obstacle vertices in the contact mesh (ContactMesh.focus)
-    contact_region_C: np.ndarray | None = None  # (n_cp, 3) m: the cloth that region was kept for
-    contact_region_bound: float | None = None  # m: how far from that cloth it reaches
     # With seams only:
     seam_multipliers: np.ndarray | None = None  # (S, 3) N/m
     seam_gaps: np.ndarray | None = None  # (S,) m, at the multipliers' last update

@@ -14,12 +14,6 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 
-# How much wider than a step needs `focus` keeps the obstacle region, as a share of the
-# need (reach + body motion + cloth edge): the margin the cloth may drift before the
-# region is chosen again.
-FOCUS_SLACK = 0.25
-
-
 class ContactMesh:
     """W: (Vc, n_cp) cloth interpolation; cloth_faces (Fc, 3) on cloth vertices; rest
     (Vc, 3) initial cloth vertices; obstacles: list of garment.io.obstacles.ObstacleGeometry.
@@ -28,8 +22,7 @@ class ContactMesh:
     body of 50K triangles under a garment of 5K made every broad phase (collision sets,
     CCD) cost 0.2 s, 70 % of a dressing step, for contacts that can only happen within
     reach of the cloth. `body_ids` are the obstacle vertices in the ipctk mesh (None: all);
-    obstacle positions are kept whole (`obstacle_vertices`). `focused` is what the kept
-    region was chosen for: (C, bound), see `focus`."""
+    obstacle positions are kept whole (`obstacle_vertices`)."""
 
     def __init__(self, W: sp.csr_matrix, cloth_faces: np.ndarray, rest: np.ndarray, obstacles=(),
                  piece_ids: np.ndarray | None = None, self_contact: bool = True, excluded=(),
@@ -57,7 +50,6 @@ class ContactMesh:
             offset += o.vertices.shape[0]
         self.body_faces = np.concatenate(body).astype(np.int32) if body else np.zeros((0, 3), np.int32)
         self.body_ids = None
-        self.focused = None  # (C, bound) the region was kept for (focus); None: none kept
         self._spheres = None  # the obstacle triangles' bounding spheres (_triangle_spheres)
         self._build(body_ids)
         self.version = 0  # bumped whenever obstacles move or the mesh changes: cached contact data expire
@@ -104,12 +96,7 @@ class ContactMesh:
         circumradius of a cloth vertex. Every contact within reach then keeps its whole
         neighbourhood (a body vertex that close has all its triangles kept), so the
         barrier, its area weights and CCD are those of the whole mesh. Returns whether
-        the mesh changed.
-
-        The region is chosen FOCUS_SLACK wider than needed and kept while it still holds
-        all a step needs: the cloth has moved less than the margin since (obstacles that
-        move drop it, `move_obstacles`). Rebuilt every step, the ipctk mesh and the search
-        for its triangles took 0.45 s of dress_04's 6.7 s sewing steps (20K DOFs)."""
+        the mesh changed."""
         if not len(self.body_faces):
             return False
         B0 = self.obstacle_vertices
@@ -117,38 +104,15 @@ class ContactMesh:
         x = self.W @ C
         X = x[self.cloth_faces]
         cloth_edge = float(np.sqrt(((X - np.roll(X, 1, axis=1)) ** 2).sum(axis=2).max(initial=0.0)))
-        need = reach + motion + cloth_edge
-        if self.focused is not None:
-            C_kept, bound = self.focused
-            drift = float(np.sqrt(((x - self.W @ C_kept) ** 2).sum(axis=1).max(initial=0.0)))
-            if need + drift <= bound:  # every triangle within `need` of x is within `bound` of the kept x
-                return False
-        bound = (1.0 + FOCUS_SLACK) * need
         centre, radius = self._triangle_spheres()
-        d, _ = cKDTree(x).query(centre, distance_upper_bound=(bound + float(radius.max())) * (1 + 1e-9))
-        ids = np.unique(self.body_faces[d <= bound + radius])
-        self.focused = (C.copy(), bound)
+        bound = reach + motion + cloth_edge + radius
+        d, _ = cKDTree(x).query(centre, distance_upper_bound=float(bound.max()) * (1 + 1e-9))
+        ids = np.unique(self.body_faces[d <= bound])
         if self.body_ids is not None and np.array_equal(ids, self.body_ids):
             return False
         self._build(ids)
         self.version += 1
         return True
-
-    def keep_focus(self, body_ids: np.ndarray, focused: tuple) -> None:
-        """Take the region `body_ids` kept for `focused` ((C, bound), or None) from a state:
-        a resumed run keeps the region the uninterrupted run had, so its contact sums
-        run in the same order and it repeats that run bit for bit. A region that does not
-        fit this mesh (another body, a damaged file) is not taken: focus chooses anew."""
-        ids, C, bound = np.asarray(body_ids), np.asarray(focused[0]), np.asarray(focused[1])
-        if not (ids.ndim == 1 and ids.dtype.kind in "iu" and (ids.size == 0 or
-                (ids.min() >= 0 and ids.max() < len(self.obstacle_vertices)))
-                and C.shape == (self.W.shape[1], 3) and C.dtype.kind == "f" and np.isfinite(C).all()
-                and bound.shape == () and bound.dtype.kind == "f" and np.isfinite(bound) and bound > 0):
-            return
-        if self.body_ids is None or not np.array_equal(ids, self.body_ids):
-            self._build(ids.astype(np.int64))
-            self.version += 1
-        self.focused = (C.astype(float), float(bound))
 
     def _triangle_spheres(self) -> tuple[np.ndarray, np.ndarray]:
         """Centroid (Fo, 3) and circumradius bound (Fo,) of every obstacle triangle where
@@ -169,7 +133,6 @@ class ContactMesh:
             return
         self.obstacle_vertices = B
         self._spheres = None
-        self.focused = None  # the region was chosen around the obstacles where they were
         self.version += 1
 
     def active(self, B: np.ndarray) -> np.ndarray:

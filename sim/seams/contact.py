@@ -165,7 +165,6 @@ class SeamContact:
                                body_ids=None if like is None else like.body_ids)
             if like is not None:  # cached contact data expire
                 mesh.move_obstacles(like.obstacle_vertices.copy())
-                mesh.focused = like.focused  # the same region, kept for the same cloth
                 mesh.version = like.version + 1
             return mesh
 

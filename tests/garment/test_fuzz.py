@@ -272,8 +272,7 @@ def _array_variants(a: np.ndarray) -> list:
     if b.dtype.kind not in "biuf":  # a string (the scene hash): numbers of its shape
         b = np.zeros(b.shape)
     nan = b.astype(float)
-    if nan.size:  # (an empty array, such as a contact region with no body near, has no middle)
-        nan.reshape(-1)[nan.size // 2] = np.nan
+    nan.reshape(-1)[nan.size // 2] = np.nan
     with np.errstate(all="ignore"):
         return [nan, b.astype(float) * np.inf, b.reshape(-1), b[..., :1], b[:0], b.astype(str), b.astype(bool),
                 b.astype(complex), np.asarray(b, object), -np.abs(b) - 1, b * 10**6, np.array(2**40),

@@ -9,7 +9,6 @@ import pytest
 
 from garment.build import build_simulator
 from garment.scene import loads_scene
-from sim.contact import mesh as mesh_module
 from sim.contact.mesh import ContactMesh
 
 from tests.support.scenes import DROP
@@ -32,8 +31,7 @@ def test_a_focused_step_sees_a_fraction_of_the_ball_and_the_same_contact(monkeyp
     ball_and_ground = len(mesh.body_faces)
     assert mesh.body_ids is not None
     kept = mesh.faces.shape[0] - mesh.cloth_faces.shape[0]
-    # The ball's lower half is out: 57 % kept (53 % without FOCUS_SLACK's margin).
-    assert kept < 0.65 * ball_and_ground
+    assert kept < 0.6 * ball_and_ground  # the ball's lower half is out (measured: 53 % kept)
     C = sim.state.C
     rng = np.random.default_rng(1)
     d = rng.normal(scale=2e-3, size=C.shape)
@@ -122,75 +120,3 @@ def test_a_step_beyond_reach_is_checked_along_the_way_the_cloth_went():
     assert not _went_clear(potential, contact, [over[0], over[-1]])
     through = [(start, B), (top + [0.0, 0.0, -0.18], B), (end, B)]  # into the ball and out
     assert not _went_clear(potential, contact, through)
-
-
-def _fresh_region(mesh: ContactMesh, C: np.ndarray, reach: float) -> np.ndarray:
-    """The obstacle vertices a focus with nothing kept takes at C (FOCUS_SLACK's margin included)."""
-    fresh = ContactMesh(mesh.W, mesh.cloth_faces, mesh._rest, mesh.obstacles, mesh.piece_ids,
-                        mesh.self_contact, mesh.excluded)
-    fresh.move_obstacles(mesh.obstacle_vertices.copy())
-    fresh.focus(C, mesh.obstacle_vertices, reach)
-    return fresh.body_ids
-
-
-def test_a_still_body_keeps_its_region_while_the_cloth_drifts_within_the_margin():
-    """Over a still ball the region is kept from step to step (no new ipctk mesh) and
-    holds every triangle a fresh focus would need; once the cloth has drifted past the
-    margin, it is chosen again around where the cloth is."""
-    sim = build_simulator(loads_scene(SCENE))
-    sim.step()
-    mesh = sim.model.barrier.contact
-    (C_kept, bound), ids, version = mesh.focused, mesh.body_ids.copy(), mesh.version
-    reach = 0.01
-    need = reach + float(np.sqrt(((mesh.vertices(C_kept)[:mesh.n_cloth][mesh.cloth_faces]
-                                   - np.roll(mesh.vertices(C_kept)[:mesh.n_cloth][mesh.cloth_faces], 1, axis=1))
-                                  ** 2).sum(axis=2).max()))
-    drift = 0.5 * (bound - need)
-    assert drift > 0
-    C = C_kept + [0.0, 0.0, -drift]  # the sheet moved down by half the margin
-    assert not mesh.focus(C, mesh.obstacle_vertices, reach)
-    assert mesh.version == version and np.array_equal(mesh.body_ids, ids) and mesh.focused[0] is C_kept
-    assert np.isin(_fresh_region(mesh, C, reach / (1 + mesh_module.FOCUS_SLACK)), ids).all()
-    C = C_kept + [0.0, 0.0, -2.0 * bound]  # farther than the margin: chosen again
-    assert mesh.focus(C, mesh.obstacle_vertices, reach)
-    assert mesh.version == version + 1 and np.array_equal(mesh.focused[0], C)
-    np.testing.assert_array_equal(mesh.body_ids, _fresh_region(mesh, C, reach))
-
-
-def test_resume_over_a_still_body_keeps_the_region_and_repeats_the_run(tmp_path, one_ipc_thread):
-    """The kept region is part of the state: a run resumed from a checkpoint over a still
-    ball has the region the uninterrupted run had, so its contact sums run in the same
-    order and the two end bit for bit the same."""
-    from sim.checkpoint import read_checkpoint, write_checkpoint
-
-    scene = loads_scene(SCENE)
-    straight = build_simulator(scene)
-    for _ in range(4):
-        straight.step()
-    kept = straight.model.barrier.contact.focused[0]
-    assert not np.array_equal(kept, straight.state.C)  # the region was kept from an earlier step
-    path = write_checkpoint(tmp_path / "c.npz", straight.state, 4, "drop")
-    for _ in range(3):
-        straight.step()
-    resumed = build_simulator(scene)
-    resumed.state = read_checkpoint(path).state
-    assert np.array_equal(resumed.model.barrier.contact.focused[0], kept)
-    for _ in range(3):
-        resumed.step()
-    assert np.array_equal(resumed.C, straight.C)
-
-
-def test_a_region_that_does_not_fit_the_mesh_is_not_taken():
-    """A state's region for another cloth (a refined garment's coarse one), ids beyond the
-    body or a damaged bound is left alone: the next focus chooses one anew."""
-    sim = build_simulator(loads_scene(SCENE))
-    sim.step()
-    mesh = sim.model.barrier.contact
-    ids, (C, bound) = mesh.body_ids.copy(), mesh.focused
-    for bad in [(ids, (C[:-1], bound)), (ids + len(mesh.obstacle_vertices), (C, bound)),
-                (ids, (C, np.nan)), (ids.astype(float), (C, bound))]:
-        mesh.focused = None
-        mesh.keep_focus(*bad)
-        assert mesh.focused is None
-    mesh.keep_focus(ids, (C, bound))
-    assert mesh.focused[1] == bound and np.array_equal(mesh.body_ids, ids)
