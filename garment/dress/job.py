@@ -77,12 +77,16 @@ class DressOptions:
     # 2.96 s, 0.8 mm apart; jumpsuit_04 from its sewn state 687 -> 313 to rest at 1.28 s
     # against 1.36 s), and at 8x (0.08 s) dress_06's full-circle skirt, falling into its
     # drape for 3 s, rests at 3.8 s in 669 ramp and settling iterations instead of 1,347
-    # (stop 58). A frame is dt x steps_per_frame long, or one step when that is longer.
+    # (stop 58). At 16x (0.16 s) a step takes about as many Newton iterations as at 0.08 s
+    # (dress_04's three-tier skirt: 23-46), so the fall costs half: dress_04 at rest in 465
+    # settling iterations from t = 0.84 s where 0.08 s steps took 492 to reach only 1.96 s,
+    # dress_06's ramp and settling 360 against 525-547, at rest at 3.0 s as before (stop 74).
+    # A frame is dt x steps_per_frame long, or one step when that is longer.
     # Sewing steps of 0.02 s throughout left shirt_mean's and dress_06's seams 3.2-3.4 mm
     # open (docs/dressing.md, stop 57); once the seams are stiff and the body grows back
     # they do no harm: shirt_mean sewn in 377 Newton iterations instead of 486, dress_06
     # in 387 instead of 508, seams closed as before (stop 58).
-    settle_dt: float = key(0.08, doc="time step once sewn (gravity ramp and settling)", unit="s", gt=0)
+    settle_dt: float = key(0.16, doc="time step once sewn (gravity ramp and settling)", unit="s", gt=0)
     grow_dt: float = key(0.02, doc="time step while the body grows back (sewing's second half)", unit="s", gt=0)
     # Simulated time at most; the wall-clock timeout is what bounds the work. At 2.5 s
     # skirt_04's side seams were still sliding off the hands at 0.1-0.2 m/s.

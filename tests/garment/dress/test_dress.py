@@ -101,10 +101,11 @@ def test_dress_a_small_garment_end_to_end(tmp_path):
     assert json.loads((out / "report.json").read_text())["status"] == "ok"
     # Where the time went: every step in one phase (0.6 s of sewing: 0.32 s at dt = 0.01 s,
     # to the first frame end once the body grows, 0.28 s at grow_dt = 0.02 s; then the
-    # ramp, 0.6-0.8 s, and the settling at settle_dt = 0.08 s).
+    # ramp, 0.6-0.8 s, and the settling at settle_dt).
     phases = report["phases"]
-    assert [phases[k]["steps"] for k in ("sewing", "gravity_ramp")] == [32 + 14, 2]
-    assert sum(p["steps"] for p in phases.values()) == 46 + round((report["simulated_s"] - 0.6) / 0.08)
+    settle_dt = DressOptions().settle_dt
+    assert [phases[k]["steps"] for k in ("sewing", "gravity_ramp")] == [32 + 14, int(0.2 / settle_dt + 1e-9)]
+    assert sum(p["steps"] for p in phases.values()) == 46 + round((report["simulated_s"] - 0.6) / settle_dt)
     assert all(p["newton_iterations"] >= p["steps"] for p in phases.values())
     assert 0 < report["placing_s"] + sum(p["seconds"] for p in phases.values()) <= report["seconds"]
     assert (out / "run.rrd").stat().st_size > 0
