@@ -57,10 +57,7 @@ class SewingOptions:
     # 60-100 iterations per step to converge, 0.3 s each on a 10K-DOF jumpsuit. At 20 the
     # sewing phase of the slowest designs was 85 % of their 10 minutes; at 8, dress_02's
     # took 297 s instead of 510 s, with its seams as closed (0.30 mm) by the pre-roll's end.
-    # At 8 every sewing step still took all 8, and sewing was 350-420 of a design's
-    # iterations; at 4 the seams close as early (upper_garment_04 below 1 mm by 0.22 s,
-    # dress_04 by 0.29 s) and the sewing takes 201-221 (docs/dressing.md, stop 75).
-    iterations: int = 4
+    iterations: int = 8
 
 
 class Sewing:
