@@ -140,7 +140,10 @@ class Sewing:
         panels: every pair blocked, the seams held 2-4 mm open)."""
         if self.energy.scale >= 1.0:
             return None
-        a, b, check = self._open(C)
+        # Every open sample, not only the pulled ones: a screened sample is not pulled,
+        # and tested only while pulled it was released every other step (jumpsuit_777_03's
+        # cuff seam, its path through the other leg's cuff, screened on alternate steps).
+        a, b, check = self._open(C, pulled=False)
         out = np.zeros(len(a), bool)
         if len(check):
             own = np.array([[piece_index[s.piece_a], piece_index[s.piece_b]] for s in self.seams])
@@ -148,12 +151,14 @@ class Sewing:
             out[check] = through_cloth(a[check], b[check], pieces[check], x, faces, face_piece)
         return out
 
-    def _open(self, C: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Both sides of every sample (S, 3) each, and the indices of the pulled samples
-        still open by more than MIN_GAP (closing seams lie on the cloth: not checked)."""
+    def _open(self, C: np.ndarray, pulled: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Both sides of every sample (S, 3) each, and the indices of the samples (pulled
+        ones only, unless `pulled` is False) still open by more than MIN_GAP (closing
+        seams lie on the cloth: not checked)."""
         e = self.energy
         a, b = e.samples.Na @ C, e.samples.Nb @ C
-        return a, b, np.flatnonzero(e.active & (np.linalg.norm(a - b, axis=1) > MIN_GAP))
+        wide = np.linalg.norm(a - b, axis=1) > MIN_GAP
+        return a, b, np.flatnonzero(e.active & wide if pulled else wide)
 
     def _tangents(self, a: np.ndarray) -> np.ndarray:
         """(S, 3) each sample's direction along its seam (side a; zero for a seam of one

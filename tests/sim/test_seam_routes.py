@@ -107,6 +107,29 @@ def test_a_path_through_another_pieces_cloth_is_screened_not_through_its_own():
     assert hit.tolist() == [True, False, False]
 
 
+def test_a_seam_screened_by_cloth_in_its_path_stays_screened_while_it_is_there():
+    # Two weightless panels side by side, sewn along their facing sides 4 cm apart, and a
+    # third piece standing upright between them: every closing path passes through it.
+    # Screened, the seam does not pull on any step (it was released every other step,
+    # tested only while pulled), so the panels stay where they are.
+    n = 8
+    a = Patch.rectangle("a", (0.2, 0.2), (n, n), (-0.1, -0.22, -0.03), (1, 0, 0), (0, 1, 0))
+    b = Patch.rectangle("b", (0.2, 0.2), (n, n), (-0.1, 0.02, -0.03), (1, 0, 0), (0, 1, 0))
+    c = Patch.rectangle("c", (0.3, 0.1), (n, n), (-0.15, 0.0, -0.08), (1, 0, 0), (0, 0, 1))
+    t = np.linspace(0.0, n - 2.0, 30)
+    seam = SeamSpec("a", np.c_[t, np.full(30, n - 2.0)], "b", np.c_[t, np.zeros(30)])
+    sim = Simulator(bspline_model([a, b, c], [PRESETS["cotton"]] * 3, gravity=(0.0, 0.0, 0.0), dt=0.01,
+                                  contact=ContactOptions(adaptive_kappa=True), seams=[seam], seam_stiffness=1e6,
+                                  sewing=SewingOptions(ramp=0.15, quasistatic=True)))
+    gap0 = float(sim.model.seam.samples.gaps(sim.C).max())
+    for k in range(4):
+        sim.step()
+        screened = sim.model.screened_samples(sim.C)
+        assert screened is not None and screened.all(), (k, screened)
+    gap = float(sim.model.seam.samples.gaps(sim.C).max())
+    assert abs(gap - gap0) < 1e-6, (gap0, gap)
+
+
 def test_routed_seam_energy_derivatives_match_finite_differences():
     sim = two_panels(0.02)
     seam = sim.model.seam
