@@ -107,20 +107,27 @@ def test_a_path_through_another_pieces_cloth_is_screened_not_through_its_own():
     assert hit.tolist() == [True, False, False]
 
 
-def test_a_seam_screened_by_cloth_in_its_path_stays_screened_while_it_is_there():
-    # Two weightless panels side by side, sewn along their facing sides 4 cm apart, and a
-    # third piece standing upright between them: every closing path passes through it.
-    # Screened, the seam does not pull on any step (it was released every other step,
-    # tested only while pulled), so the panels stay where they are.
+def _facing_panels(others=(), obstacles=()) -> Simulator:
+    """Two weightless 0.2 m panels side by side at z = -0.03, 4 cm apart across y = 0,
+    sewn along their facing sides (ramped, quasi-static), with the patches `others` and
+    the `obstacles`."""
     n = 8
     a = Patch.rectangle("a", (0.2, 0.2), (n, n), (-0.1, -0.22, -0.03), (1, 0, 0), (0, 1, 0))
     b = Patch.rectangle("b", (0.2, 0.2), (n, n), (-0.1, 0.02, -0.03), (1, 0, 0), (0, 1, 0))
-    c = Patch.rectangle("c", (0.3, 0.1), (n, n), (-0.15, 0.0, -0.08), (1, 0, 0), (0, 0, 1))
     t = np.linspace(0.0, n - 2.0, 30)
     seam = SeamSpec("a", np.c_[t, np.full(30, n - 2.0)], "b", np.c_[t, np.zeros(30)])
-    sim = Simulator(bspline_model([a, b, c], [PRESETS["cotton"]] * 3, gravity=(0.0, 0.0, 0.0), dt=0.01,
-                                  contact=ContactOptions(adaptive_kappa=True), seams=[seam], seam_stiffness=1e6,
-                                  sewing=SewingOptions(ramp=0.15, quasistatic=True)))
+    patches = [a, b, *others]
+    return Simulator(bspline_model(patches, [PRESETS["cotton"]] * len(patches), gravity=(0.0, 0.0, 0.0), dt=0.01,
+                                   contact=ContactOptions(adaptive_kappa=True), obstacles=list(obstacles),
+                                   seams=[seam], seam_stiffness=1e6, sewing=SewingOptions(ramp=0.15, quasistatic=True)))
+
+
+def test_a_seam_screened_by_cloth_in_its_path_stays_screened_while_it_is_there():
+    # A third piece stands upright between the two panels: every closing path passes
+    # through it. Screened, the seam does not pull on any step (it was released every
+    # other step, tested only while pulled), so the panels stay where they are.
+    c = Patch.rectangle("c", (0.3, 0.1), (8, 8), (-0.15, 0.0, -0.08), (1, 0, 0), (0, 0, 1))
+    sim = _facing_panels([c])
     gap0 = float(sim.model.seam.samples.gaps(sim.C).max())
     for k in range(4):
         sim.step()
@@ -164,14 +171,7 @@ def _over_a_wall() -> Simulator:
     runs through the wall."""
     wall = trimesh.creation.box(extents=(0.5, 0.02, 0.5))
     body = ObstacleGeometry("wall", np.asarray(wall.vertices) + [0.0, 0.0, -0.25], np.asarray(wall.faces, np.int32))
-    n = 8
-    a = Patch.rectangle("a", (0.2, 0.2), (n, n), (-0.1, -0.22, -0.03), (1, 0, 0), (0, 1, 0))
-    b = Patch.rectangle("b", (0.2, 0.2), (n, n), (-0.1, 0.02, -0.03), (1, 0, 0), (0, 1, 0))
-    t = np.linspace(0.0, n - 2.0, 30)
-    seam = SeamSpec("a", np.c_[t, np.full(30, n - 2.0)], "b", np.c_[t, np.zeros(30)])
-    return Simulator(bspline_model([a, b], [PRESETS["cotton"]] * 2, gravity=(0.0, 0.0, 0.0), dt=0.01,
-                                   contact=ContactOptions(adaptive_kappa=True), obstacles=[body], seams=[seam],
-                                   seam_stiffness=1e6, sewing=SewingOptions(ramp=0.15, quasistatic=True)))
+    return _facing_panels(obstacles=[body])
 
 
 def _sew_over_a_wall(steps: int = 12) -> tuple[float, float]:
