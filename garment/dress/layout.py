@@ -384,9 +384,12 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
     the direction (DIRECTIONS, or straight away from the body's vertical axis) that frees
     them with the least move, a multiple of OUT_STEP up to OUT_MOST, and crosses nothing
     new (the body, other panels, other seams' paths). A sleeve laid with its underarm
-    between the torso's front and back moves out and up. Panels round the body's axis (a
-    skirt) and panels no move frees stay where they are (`Sewing.screened` holds those
-    seams during the ramp). Returns each moved patch's offset (m)."""
+    between the torso's front and back moves out and up, its cuff with it. Panels round
+    the body's axis (a skirt) and panels no move frees stay where they are
+    (`Sewing.screened` holds those seams during the ramp); where only what hangs from the
+    caught panels is round the axis (a trouser cuff caught in the other cuff's side seam,
+    the rest of the garment hanging from it), the caught panels move alone. Returns each
+    moved patch's offset (m)."""
     panels = panels or [p.name for p in patches]
     surface = _Surface.of(patches)
 
@@ -404,12 +407,24 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
     links = [(group_of[s.patch_a], group_of[s.patch_b]) for s in seams
              if s.patch_a in group_of and s.patch_b in group_of]
     seam_panels = {s.name: {group_of.get(s.patch_a), group_of.get(s.patch_b)} for s in seams}
-    # Panels caught by a common seam move together, with what hangs from them (not
-    # through the panels of the seams that catch them).
-    groups = _merged([{panel for s, panel in found if s == seam} for seam in sorted({s for s, _ in found})])
-    groups = _merged([_hanging(g, links, set().union(*(seam_panels[s] for s, panel in found if panel in g)))
-                      for g in groups])
     axis = np.asarray(body_V, float)[:, :2].mean(axis=0)
+
+    def round_axis(group) -> bool:
+        # Is the body's axis in the middle half of the group's extent (x and y)? A skirt
+        # laid round the trunk has it in its middle; a cuff round one ankle reaches it
+        # only with its inner edge.
+        points = np.concatenate([index[n].world.reshape(-1, 3)[:, :2] for panel in group for n in members[panel]])
+        low, high = points.min(axis=0), points.max(axis=0)
+        return bool(np.all((0.75 * low + 0.25 * high < axis) & (axis < 0.25 * low + 0.75 * high)))
+
+    # Panels caught by a common seam move together, with what hangs from them (not
+    # through the panels of the seams that catch them). What hangs from a trouser cuff
+    # caught in the other cuff's side seam is the whole garment but that cuff, round the
+    # axis: the cuff moves alone, and its seam to the leg closes the gap.
+    caught_by = _merged([{panel for s, panel in found if s == seam} for seam in sorted({s for s, _ in found})])
+    hanging = [_hanging(g, links, set().union(*(seam_panels[s] for s, panel in found if panel in g)))
+               for g in caught_by]
+    groups = _merged([h if not round_axis(h) or round_axis(g) else g for g, h in zip(caught_by, hanging)])
     before = {k: len(v) for k, v in crossings(patches, body_V, body_F, surface).items()}
 
     def crosses() -> bool:  # the body or a panel, where it did not
@@ -417,10 +432,14 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
 
     moved: dict[str, float] = {}
     for group in groups:
+        if moved:  # an earlier group's move may have freed this one (the other cuff)
+            found = caught()
+            if not any(panel in group for _, panel in found):
+                continue
         names = [n for panel in sorted(group) for n in members[panel]]
         start = {n: index[n].world.copy() for n in names}
         points = np.concatenate([start[n].reshape(-1, 3) for n in names])
-        if np.all((points[:, :2].min(axis=0) < axis) & (axis < points[:, :2].max(axis=0))):
+        if round_axis(group):
             # Round the body's axis (a skirt whose flared sides reach into the bodice's side
             # seams): its own seams wrap it round the trunk and out of those paths, and no
             # rigid move frees it without taking it off its seams (dress_04's skirt, moved

@@ -215,6 +215,55 @@ def test_a_sleeve_caught_in_the_side_seam_moves_out_with_its_cuff():
     assert independent_pairs(patches, body) == 0
 
 
+def test_a_cuff_caught_in_the_other_cuffs_side_seam_moves_alone():
+    """Two trouser cuffs laid on ankles close together overlap: one cuff's inner side seam
+    closes through the other cuff (jumpsuit_777_03). What hangs from the caught cuff is
+    the whole garment but the first cuff, round the body's axis, which no rigid move may
+    take; the caught cuff moves alone, out of the paths, and the torso stays."""
+    from garment.dress.layout import OUT_STEP, out_of_seam_paths, seams_through_cloth
+    from sim.seams.spec import PatchSeam
+
+    body = torso()
+    V, F = np.asarray(body.vertices), np.asarray(body.faces, np.int32)
+    front = Patch.rectangle("front", (0.5, 0.4), (8, 7), origin=(-0.25, -0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    back = Patch.rectangle("back", (0.5, 0.4), (8, 7), origin=(-0.25, 0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+
+    def cuff(name, x0, width, y):  # 9 cm deep, below the body (an ankle's height)
+        return Patch.rectangle(name, (width, 0.09), (7, 4), origin=(x0, y, -0.3), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+
+    # Cuff a from x = -0.3 to 0.02 m in the planes y = -+0.1; cuff b from x = -0.03 m in
+    # the planes y = -+0.08, between a's two panels: a's inner seam, at x = 0.02 m, crosses it.
+    a_front, a_back = cuff("a_front", -0.3, 0.32, -0.1), cuff("a_back", -0.3, 0.32, 0.1)
+    b_front, b_back = cuff("b_front", -0.03, 0.33, -0.08), cuff("b_back", -0.03, 0.33, 0.08)
+
+    def side(p, u, k=5):  # k samples up the patch's side at parameter u
+        return np.c_[np.full(k, u), np.linspace(0, p.shape[1] - 2, k)]
+
+    def top(name, c, torso_panel):  # a cuff's top to the torso's bottom
+        return PatchSeam(name, c.name, torso_panel.name, np.c_[np.linspace(0, 5, 7), np.full(7, 2.0)],
+                         np.c_[np.linspace(0, 6, 7), np.zeros(7)], [], [])
+
+    seams = [PatchSeam("left", "front", "back", side(front, 6.0), side(back, 6.0), [], []),
+             PatchSeam("right", "front", "back", side(front, 0.0), side(back, 0.0), [], []),
+             PatchSeam("inner_a", "a_front", "a_back", side(a_front, 5.0), side(a_back, 5.0), [], []),
+             PatchSeam("inner_b", "b_front", "b_back", side(b_front, 0.0), side(b_back, 0.0), [], []),
+             top("top_af", a_front, front), top("top_ab", a_back, back),
+             top("top_bf", b_front, front), top("top_bb", b_back, back)]
+    patches = [front, back, a_front, a_back, b_front, b_back]
+    before = {p.name: p.world.copy() for p in patches}
+    caught = {k for k, n in seams_through_cloth(patches, seams).items() if n >= 3}
+    assert caught == {("inner_a", "b_front"), ("inner_a", "b_back")}
+    moved = out_of_seam_paths(patches, seams, V, F)
+    # Out along +x, away from cuff a: 4 cm leaves b's inner edge at x = 0.01 m, still
+    # caught; 6 cm frees it. Down, it would need 10 cm.
+    assert moved == pytest.approx({"b_front": 3 * OUT_STEP, "b_back": 3 * OUT_STEP})
+    for p in (b_front, b_back):
+        np.testing.assert_allclose(p.world - before[p.name], np.broadcast_to([0.06, 0, 0], p.world.shape))
+    assert all(np.array_equal(p.world, before[p.name]) for p in (front, back, a_front, a_back))
+    assert not {k for k, n in seams_through_cloth(patches, seams).items() if n >= 3}
+    assert independent_pairs(patches, body) == 0
+
+
 def test_a_skirt_round_the_body_caught_in_the_side_seams_stays():
     """A flared skirt laid flat reaches into the bodice's side seams with both sides, but
     round the body's axis its own side seams wrap it out of their paths as they close; no
