@@ -409,12 +409,14 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
     seam_panels = {s.name: {group_of.get(s.patch_a), group_of.get(s.patch_b)} for s in seams}
     axis = np.asarray(body_V, float)[:, :2].mean(axis=0)
 
-    def round_axis(group) -> bool:
-        # Is the body's axis in the middle half of the group's extent (x and y)? A skirt
+    def control_points(group) -> np.ndarray:  # (K, 3) of every patch of the group's panels
+        return np.concatenate([index[n].world.reshape(-1, 3) for panel in sorted(group) for n in members[panel]])
+
+    def round_axis(points) -> bool:
+        # Is the body's axis in the middle half of the points' extent (x and y)? A skirt
         # laid round the trunk has it in its middle; a cuff round one ankle reaches it
         # only with its inner edge.
-        points = np.concatenate([index[n].world.reshape(-1, 3)[:, :2] for panel in group for n in members[panel]])
-        low, high = points.min(axis=0), points.max(axis=0)
+        low, high = points[:, :2].min(axis=0), points[:, :2].max(axis=0)
         return bool(np.all((0.75 * low + 0.25 * high < axis) & (axis < 0.25 * low + 0.75 * high)))
 
     # Panels caught by a common seam move together, with what hangs from them (not
@@ -424,7 +426,8 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
     caught_by = _merged([{panel for s, panel in found if s == seam} for seam in sorted({s for s, _ in found})])
     hanging = [_hanging(g, links, set().union(*(seam_panels[s] for s, panel in found if panel in g)))
                for g in caught_by]
-    groups = _merged([h if not round_axis(h) or round_axis(g) else g for g, h in zip(caught_by, hanging)])
+    groups = _merged([g if round_axis(control_points(h)) and not round_axis(control_points(g)) else h
+                      for g, h in zip(caught_by, hanging)])
     before = {k: len(v) for k, v in crossings(patches, body_V, body_F, surface).items()}
 
     def crosses() -> bool:  # the body or a panel, where it did not
@@ -438,8 +441,8 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
                 continue
         names = [n for panel in sorted(group) for n in members[panel]]
         start = {n: index[n].world.copy() for n in names}
-        points = np.concatenate([start[n].reshape(-1, 3) for n in names])
-        if round_axis(group):
+        points = control_points(group)
+        if round_axis(points):
             # Round the body's axis (a skirt whose flared sides reach into the bodice's side
             # seams): its own seams wrap it round the trunk and out of those paths, and no
             # rigid move frees it without taking it off its seams (dress_04's skirt, moved
