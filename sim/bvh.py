@@ -133,6 +133,29 @@ def _cross(u, v):
 
 
 @njit(cache=True, inline="always")
+def _beyond(u, v, n, p, q, tol):
+    """Whether p and q both lie beyond the line u v, in the plane of normal n, by more
+    than tol (a length): outside the triangle's edge u v when u v runs anticlockwise."""
+    m = _cross(_sub(v, u), n)
+    margin = tol * np.sqrt(_dot(m, m))
+    return _dot(m, _sub(p, u)) > margin and _dot(m, _sub(q, u)) > margin
+
+
+@njit(cache=True, inline="always")
+def _apart_in_plane(p, q, d, a, b, c, n, tol):
+    """Whether segment p q (d = q - p) and triangle a b c (normal n), projected along n,
+    are apart by more than tol: a line through a triangle edge or along the segment
+    separates them. Projections that do not meet rule out a crossing, whatever the
+    segment's height above the plane."""
+    if _beyond(a, b, n, p, q, tol) or _beyond(b, c, n, p, q, tol) or _beyond(c, a, n, p, q, tol):
+        return True
+    m = _cross(d, n)
+    margin = tol * np.sqrt(_dot(m, m))
+    sa, sb, sc = _dot(m, _sub(a, p)), _dot(m, _sub(b, p)), _dot(m, _sub(c, p))
+    return (sa > margin and sb > margin and sc > margin) or (sa < -margin and sb < -margin and sc < -margin)
+
+
+@njit(cache=True, inline="always")
 def verdict(p, q, a, b, c, unsure):
     """Does segment p q cross triangle a b c, ends and borders included (Moller-Trumbore):
     MISS, HIT or UNSURE, where ipctk's exact test must decide. Points are 3-tuples or rows
@@ -149,6 +172,8 @@ def verdict(p, q, a, b, c, unsure):
         reach = unsure * nn * (ld + l1 + l2)
         if nn > 0.0 and ((sp > reach and sq > reach) or (sp < -reach and sq < -reach)):
             return MISS  # parallel to the plane and clear of it
+        if nn > 0.0 and _apart_in_plane(p, q, d, a, b, c, n, unsure * (ld + l1 + l2)):
+            return MISS  # seen along the normal, clear of the triangle (a flat panel's own pairs)
         return UNSURE
     inv = 1.0 / det
     s = _sub(p, a)
