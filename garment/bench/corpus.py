@@ -5,7 +5,10 @@ independent check on every exported frame, no NaN, under the 10-minute timeout).
 
 The corpus is `../shared/assets/garmentcode_corpus/` next to the repository (or
 $GARMENT_CORPUS): `manifest.csv` gives each design's type and body; pants and jumpsuits go
-on `mean_all_apart.obj`, the rest on `mean_all.obj` (`patterns_garmentcode/` beside it).
+on `mean_all_apart.obj`, the rest on `mean_all.obj` (`patterns_garmentcode/` beside it, or
+the shared one). `GARMENT_CORPUS=assets/garments/garmentcode_seed777 garment bench corpus
+--case upper_garment,skirt,pants,dress,jumpsuit` dresses the 25 designs kept for the
+unseen rate (their README).
 Outputs are kept in `out/bench-corpus/<design>/` (or --out).
 """
 
@@ -25,14 +28,19 @@ ROOT = Path(__file__).resolve().parents[2]
 COLUMNS = ("design", "type", "status", "seam_gap_max_mm", "crossings", "dofs", "seconds", "settle_time_s")
 
 
+SHARED = ROOT.parent / "shared" / "assets"
+
+
 def corpus_dir() -> Path:
-    return Path(os.environ.get("GARMENT_CORPUS", ROOT.parent / "shared" / "assets" / "garmentcode_corpus"))
+    return Path(os.environ.get("GARMENT_CORPUS", SHARED / "garmentcode_corpus"))
 
 
 def designs(case: str | None = None) -> list[dict]:
     """[{design, type, pattern, body}] of the corpus and the bundled patterns."""
     folder = corpus_dir()
     bodies = folder.parent / "patterns_garmentcode"
+    if not bodies.is_dir():  # a corpus kept apart from the bodies (assets/garments/garmentcode_seed777)
+        bodies = SHARED / "patterns_garmentcode"
     if not (folder / "manifest.csv").is_file():
         raise InputError(f"{folder}: no GarmentCode corpus (manifest.csv); set GARMENT_CORPUS to its folder")
     with open(folder / "manifest.csv", newline="") as f:

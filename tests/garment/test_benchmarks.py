@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 from types import SimpleNamespace
 
@@ -105,3 +106,23 @@ def test_bundled_hanging_sheet_is_seeded_and_factorizations_are_counted():
     stats = [sim.step() for _ in range(3)]
     assert sum(s.factorizations for s in stats) == sim.model.potential.solver.n_factorizations > 0
     assert sum(s.factorizations for s in stats) >= sum(s.newton_iterations for s in stats)
+
+
+def test_the_kept_seed777_designs_read_as_a_corpus(monkeypatch):
+    """assets/garments/garmentcode_seed777 (the unseen rate's 25 designs) runs through
+    `garment bench corpus` with GARMENT_CORPUS: every pattern reads with the panels and
+    stitches its manifest gives, on a body that exists."""
+    from garment.bench import corpus
+    from garment.io.garments import read_pattern
+
+    folder = corpus.ROOT / "assets" / "garments" / "garmentcode_seed777"
+    monkeypatch.setenv("GARMENT_CORPUS", str(folder))
+    rows = corpus.designs("upper_garment,skirt,pants,dress,jumpsuit")
+    assert len(rows) == 25
+    counts = {r["name"]: (int(r["panels"]), int(r["stitches"])) for r in csv.DictReader(open(folder / "manifest.csv"))}
+    for row in rows:
+        panels, seams = read_pattern(row["pattern"], 0.04)
+        assert (len(panels), len(seams)) == counts[row["design"]], row["design"]
+        if not row["body"].is_file():
+            pytest.skip(f"no shared bodies here ({row['body']})")
+        assert row["body"].stem == ("mean_all_apart" if row["type"] in ("pants", "jumpsuit") else "mean_all")
