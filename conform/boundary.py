@@ -264,25 +264,29 @@ def _check_simple(panel: Panel, outline: Outline) -> None:
                                 f"{_ids(panel, outline.vertices[i])} and {_ids(panel, outline.vertices[j])})")
 
 
-def self_intersections(P: np.ndarray, chunk: int = 512) -> list[tuple[int, int]]:
+def self_intersections(P: np.ndarray) -> list[tuple[int, int]]:
     """Pairs (i, j), i < j, of non-adjacent segments P_i P_i+1 of the closed polygon P that
-    intersect (touching counts)."""
+    intersect (touching counts). Candidates are the pairs whose boxes overlap, found by a
+    sweep along x (segments sorted by their boxes' low x), not by testing all B^2 pairs:
+    dress_04's 36 outlines took 3.4 s that way."""
     B = P.shape[0]
-    chunk = max(1, min(chunk, _PAIR_BLOCK // max(B, 1)))  # chunk x B candidate arrays
     a, b = P, np.roll(P, -1, axis=0)
     lo, hi = np.minimum(a, b), np.maximum(a, b)
-    tol = 1e-12 * float(np.ptp(P, axis=0).max())
+    size = float(np.ptp(P, axis=0).max()) if B else 0.0
+    tol = 1e-12 * size
+    order = np.argsort(lo[:, 0], kind="stable")
+    # Sorted segment k overlaps in x every later one up to `last[k]` (exclusive).
+    last = np.searchsorted(lo[order, 0], hi[order, 0] + tol, side="right")
+    count = np.maximum(last - np.arange(B) - 1, 0)
     out = []
-    for start in range(0, B, chunk):
-        i = np.arange(start, min(start + chunk, B))[:, None]
-        j = np.arange(B)[None, :]
-        cand = (j > i) & ((j - i) % B != 1) & ((i - j) % B != 1)
-        cand &= (lo[i, 0] <= hi[j, 0] + tol) & (lo[j, 0] <= hi[i, 0] + tol)
-        cand &= (lo[i, 1] <= hi[j, 1] + tol) & (lo[j, 1] <= hi[i, 1] + tol)
-        ii, jj = np.nonzero(cand)
-        if ii.size == 0:
-            continue
-        ii = ii + start
+    for rows in _blocks(count, _PAIR_BLOCK):
+        n = count[rows]
+        k = np.repeat(rows, n)
+        kk = k + 1 + np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+        ii, jj = np.minimum(order[k], order[kk]), np.maximum(order[k], order[kk])
+        cand = ((jj - ii) % B != 1) & ((ii - jj) % B != 1)
+        cand &= (lo[ii, 1] <= hi[jj, 1] + tol) & (lo[jj, 1] <= hi[ii, 1] + tol)
+        ii, jj = ii[cand], jj[cand]
         p1, p2, q1, q2 = a[ii], b[ii], a[jj], b[jj]
 
         def orient(u, v, w):
@@ -290,7 +294,19 @@ def self_intersections(P: np.ndarray, chunk: int = 512) -> list[tuple[int, int]]
 
         d1, d2 = orient(q1, q2, p1), orient(q1, q2, p2)
         d3, d4 = orient(p1, p2, q1), orient(p1, p2, q2)
-        scale = tol * float(np.ptp(P, axis=0).max())
-        cross = (d1 * d2 <= scale) & (d3 * d4 <= scale)
+        cross = (d1 * d2 <= tol * size) & (d3 * d4 <= tol * size)
         out += [(int(x), int(y)) for x, y in zip(ii[cross], jj[cross])]
     return sorted(out)
+
+
+def _blocks(count: np.ndarray, most: int):
+    """Runs of consecutive indices of `count` whose counts sum to about `most` at most
+    (one index alone may exceed it): the candidate arrays are built a block at a time."""
+    start, total = 0, 0
+    for k, c in enumerate(count.tolist()):
+        if total and total + c > most:
+            yield np.arange(start, k)
+            start, total = k, 0
+        total += c
+    if start < len(count):
+        yield np.arange(start, len(count))

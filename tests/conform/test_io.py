@@ -245,3 +245,42 @@ def test_flat_meshes_in_other_formats(tmp_path):
     trimesh.Trimesh(V3, F, process=False).export(path)
     with pytest.raises(InputError, match="not flat"):
         read_panels(path)
+
+
+def test_outline_self_intersections_are_the_pairs_testing_every_pair_finds():
+    """The sweep's candidates (boxes overlapping in x, then y) lose no crossing: against
+    every pair tested (boxes overlapping, then the orientations), on star-shaped loops wild enough to cross themselves, some on a
+    coarse grid so that segments touch, lie along each other and share x."""
+    from conform.boundary import self_intersections
+
+    def orient(u, v, w):
+        return (v[0] - u[0]) * (w[1] - u[1]) - (v[1] - u[1]) * (w[0] - u[0])
+
+    def every_pair(P):
+        B, tol = len(P), 1e-12 * float(np.ptp(P, axis=0).max())
+        size = float(np.ptp(P, axis=0).max())
+        out = []
+        for i in range(B):
+            for j in range(i + 2, B):
+                if (i - j) % B == 1:
+                    continue
+                p1, p2, q1, q2 = P[i], P[(i + 1) % B], P[j], P[(j + 1) % B]
+                apart = (np.minimum(p1, p2) > np.maximum(q1, q2) + tol) | (np.minimum(q1, q2) > np.maximum(p1, p2) + tol)
+                if not apart.any() and orient(q1, q2, p1) * orient(q1, q2, p2) <= tol * size and \
+                        orient(p1, p2, q1) * orient(p1, p2, q2) <= tol * size:
+                    out.append((i, j))
+        return out
+
+    rng = np.random.default_rng(4)
+    crossed = 0
+    for trial in range(40):
+        B = int(rng.integers(4, 60))
+        t = np.sort(rng.uniform(0, 2 * np.pi, B))
+        r = 1 + rng.uniform(0, (0.05, 2.0)[trial % 2], B)
+        P = np.stack([r * np.cos(t), r * np.sin(t)], 1)
+        if trial % 4 == 0:
+            P = np.round(P * 4) / 4
+        expected = every_pair(P)
+        crossed += bool(expected)
+        assert self_intersections(P) == expected, trial
+    assert 5 < crossed < 40  # loops that cross themselves and loops that do not
