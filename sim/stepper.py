@@ -70,7 +70,7 @@ def step(model: Model, state: State) -> StepStats:
         if model.stiffness is not None:
             stats.extra["kappa"] = model.stiffness.update(model.potential, x0)
     pulled_shut = sewing is not None and sewing.pulled_shut(t_next, state.dt)
-    newton = sewing.newton(model.newton, state.C) if pulled_shut else model.newton
+    newton = sewing.newton(model.newton) if pulled_shut else model.newton
     C_new = minimize(model.potential, x0, newton, stats, path, origin=state.C)
     if reach is not None:
         C_new = _within_reach(model, state, path, C_new, reach, stats, newton)

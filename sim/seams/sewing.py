@@ -58,11 +58,6 @@ class SewingOptions:
     # sewing phase of the slowest designs was 85 % of their 10 minutes; at 8, dress_02's
     # took 297 s instead of 510 s, with its seams as closed (0.30 mm) by the pre-roll's end.
     iterations: int = 8
-    # A step that starts with every seam closed (widest gap below closed_gap) only follows
-    # the body growing back; half the iterations do (ug_00's sewing 383 -> 296 Newton
-    # iterations, ug_06's 404 -> 299, seams as closed: 0.38 and 0.31 mm).
-    closed_iterations: int = 4
-    closed_gap: float = 1e-3  # m
 
 
 class Sewing:
@@ -189,13 +184,9 @@ class Sewing:
         o = self.options
         return o.quasistatic and t_next < max(o.ramp, o.preroll) - 1e-9 * dt
 
-    def newton(self, options, C: np.ndarray):
-        """Newton's options for a quasi-static sewing step (pulled_shut) from C: fewer
-        iterations once every seam is closed."""
-        o = self.options
-        closed = self.energy.samples.gaps(C).max(initial=0.0) < o.closed_gap
-        return replace(options, max_iterations=min(options.max_iterations,
-                                                   o.closed_iterations if closed else o.iterations))
+    def newton(self, options):
+        """Newton's options for a quasi-static sewing step (pulled_shut)."""
+        return replace(options, max_iterations=min(options.max_iterations, self.options.iterations))
 
     def gaps(self, C: np.ndarray) -> dict[str, float]:
         """Largest gap (m) of each seam, by name (seams without one: their index)."""

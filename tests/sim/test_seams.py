@@ -432,27 +432,3 @@ def test_pieces_of_a_cut_panel_that_overlap_at_the_start_are_sewn_there():
     for k in range(3):
         sim.step()
         assert_garment_clean(sim.model.pieces, sim.C, f"step {k + 1}")
-
-
-def test_a_quasi_static_sewing_step_from_closed_seams_gets_fewer_newton_iterations():
-    # Each pulled-shut step is capped; once every seam is closed (< closed_gap) the body
-    # growing back is all that is left to follow, and the smaller cap holds.
-    sim = _ramped(True)
-    sewing, newton = sim.model.sewing, sim.model.newton
-    C_open = sim.C.copy()
-    assert sewing.energy.samples.gaps(C_open).max() > 0.02  # 3 cm apart at the start
-    assert sewing.newton(newton, C_open).max_iterations == SewingOptions.iterations
-    for _ in range(5):  # the ramp's steps pull the seam shut (test above)
-        sim.step()
-    assert sewing.energy.samples.gaps(sim.C).max() < SewingOptions.closed_gap
-    assert sewing.newton(newton, sim.C).max_iterations == SewingOptions.closed_iterations
-    # In a run: with a cap of one iteration once closed, no closed pulled-shut step takes more.
-    capped = _ramped(True, preroll=0.1)
-    capped.model.sewing.options = dataclasses.replace(capped.model.sewing.options, closed_iterations=1)
-    steps = []
-    while capped.t < 0.1 - 1e-9:
-        closed = capped.model.sewing.energy.samples.gaps(capped.C).max() < SewingOptions.closed_gap
-        steps.append((closed, capped.step().newton_iterations))
-    steps.pop()  # the step that ends the pre-roll is not pulled shut (it lets the cloth move on)
-    assert any(c for c, _ in steps) and all(n <= 1 for c, n in steps if c)
-    assert max(n for c, n in steps if not c) > 1
