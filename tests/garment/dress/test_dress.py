@@ -88,6 +88,27 @@ def test_gathered_seam_samples_at_equal_length_fractions(tmp_path):
     np.testing.assert_allclose(lb / la, 40.0 / 30.0, rtol=1e-9)  # the longer edge eased in evenly
 
 
+def test_a_split_step_is_counted_in_its_phase_with_why_it_failed(tmp_path, monkeypatch):
+    """A failed step is retried as two halves; the report counts it in its phase (the
+    failed attempt's time is in the phase's seconds, not its iterations) and says why."""
+    import sim.recovery
+
+    real, calls = sim.recovery.failure, []
+
+    def fails_once(s, st):
+        calls.append(st.time)
+        return "a failure made up for the test" if len(calls) == 3 else real(s, st)
+
+    monkeypatch.setattr(sim.recovery, "failure", fails_once)
+    pattern = tube_skirt(tmp_path / "skirt.json")
+    with pytest.warns(sim.recovery.SplitWarning):
+        report = dress(pattern, cylinder_body(tmp_path / "body.obj"), tmp_path / "out", {"max_time": 0.05})
+    assert [p["splits"] for p in report["phases"].values()] == [1, 0, 0]
+    assert report["phases"]["sewing"]["steps"] == 5  # the third taken as two halves counts once
+    assert len(report["splits"]) == 1 and "a failure made up for the test" in report["splits"][0]
+    assert report["splits"][0].startswith("t = 0.02 s")
+
+
 def test_dress_a_small_garment_end_to_end(tmp_path):
     pattern = tube_skirt(tmp_path / "skirt.json")
     body = cylinder_body(tmp_path / "body.obj")
