@@ -169,10 +169,11 @@ def verdict(p, q, a, b, c, unsure):
         n = _cross(e1, e2)
         nn = np.sqrt(_dot(n, n))
         sp, sq = _dot(n, _sub(p, a)), _dot(n, _sub(q, a))
-        reach = unsure * nn * (ld + l1 + l2)
+        span = unsure * (ld + l1 + l2)  # a length: what round-off could move a point by
+        reach = span * nn
         if nn > 0.0 and ((sp > reach and sq > reach) or (sp < -reach and sq < -reach)):
             return MISS  # parallel to the plane and clear of it
-        if nn > 0.0 and _apart_in_plane(p, q, d, a, b, c, n, unsure * (ld + l1 + l2)):
+        if nn > 0.0 and _apart_in_plane(p, q, d, a, b, c, n, span):
             return MISS  # seen along the normal, clear of the triangle (a flat panel's own pairs)
         return UNSURE
     inv = 1.0 / det

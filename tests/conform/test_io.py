@@ -249,16 +249,17 @@ def test_flat_meshes_in_other_formats(tmp_path):
 
 def test_outline_self_intersections_are_the_pairs_testing_every_pair_finds():
     """The sweep's candidates (boxes overlapping in x, then y) lose no crossing: against
-    every pair tested (boxes overlapping, then the orientations), on star-shaped loops wild enough to cross themselves, some on a
-    coarse grid so that segments touch, lie along each other and share x."""
+    every pair tested (boxes overlapping, then the orientations), on star-shaped loops
+    wild enough to cross themselves, some on a coarse grid so that segments touch, lie
+    along each other and share x."""
     from conform.boundary import self_intersections
 
     def orient(u, v, w):
         return (v[0] - u[0]) * (w[1] - u[1]) - (v[1] - u[1]) * (w[0] - u[0])
 
     def every_pair(P):
-        B, tol = len(P), 1e-12 * float(np.ptp(P, axis=0).max())
-        size = float(np.ptp(P, axis=0).max())
+        B, size = len(P), float(np.ptp(P, axis=0).max())
+        tol = 1e-12 * size
         out = []
         for i in range(B):
             for j in range(i + 2, B):

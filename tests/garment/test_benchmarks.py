@@ -119,7 +119,8 @@ def test_the_kept_seed777_designs_read_as_a_corpus(monkeypatch):
     monkeypatch.setenv("GARMENT_CORPUS", str(folder))
     rows = corpus.designs("upper_garment,skirt,pants,dress,jumpsuit")
     assert len(rows) == 25
-    counts = {r["name"]: (int(r["panels"]), int(r["stitches"])) for r in csv.DictReader(open(folder / "manifest.csv"))}
+    with open(folder / "manifest.csv", newline="") as f:
+        counts = {r["name"]: (int(r["panels"]), int(r["stitches"])) for r in csv.DictReader(f)}
     for row in rows:
         panels, seams = read_pattern(row["pattern"], 0.04)
         assert (len(panels), len(seams)) == counts[row["design"]], row["design"]
