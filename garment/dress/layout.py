@@ -408,22 +408,16 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
              if s.patch_a in group_of and s.patch_b in group_of]
     seam_panels = {s.name: {group_of.get(s.patch_a), group_of.get(s.patch_b)} for s in seams}
     axis = np.asarray(body_V, float)[:, :2].mean(axis=0)
-    side = int(np.argmax(np.ptp(np.asarray(body_V, float)[:, :2], axis=0)))  # side to side: the arms' span
 
     def control_points(group) -> np.ndarray:  # (K, 3) of every patch of the group's panels
         return np.concatenate([index[n].world.reshape(-1, 3) for panel in sorted(group) for n in members[panel]])
 
     def round_axis(points) -> bool:
-        # Is the body's axis in the middle half of the points' extent (x and y), and in
-        # its middle quarter side to side? A skirt laid round the trunk has it in its
-        # middle; a cuff round one ankle reaches it only with its inner edge. Patterns are
-        # mirror images left to right, so what goes round the trunk is centred on it; a
-        # flared trouser cuff laid flat beside its ankle, 67 cm wide, reached across the
-        # axis with its inner third (jumpsuit_777_03: taken for a skirt, never moved).
+        # Is the body's axis in the middle half of the points' extent (x and y)? A skirt
+        # laid round the trunk has it in its middle; a cuff round one ankle reaches it
+        # only with its inner edge.
         low, high = points[:, :2].min(axis=0), points[:, :2].max(axis=0)
-        middle = np.all((0.75 * low + 0.25 * high < axis) & (axis < 0.25 * low + 0.75 * high))
-        lo, hi = low[side], high[side]
-        return bool(middle and 0.625 * lo + 0.375 * hi < axis[side] < 0.375 * lo + 0.625 * hi)
+        return bool(np.all((0.75 * low + 0.25 * high < axis) & (axis < 0.25 * low + 0.75 * high)))
 
     # Panels caught by a common seam move together, with what hangs from them (not
     # through the panels of the seams that catch them). What hangs from a trouser cuff
