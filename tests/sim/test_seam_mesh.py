@@ -9,7 +9,7 @@ import pytest
 import sim.seams.contact as seams_mod
 from sim.model import ContactOptions
 from sim.checkpoint import read_checkpoint, write_checkpoint
-from sim.seams.mesh import SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
+from sim.seams.mesh import CROWD, SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
 
 from tests.support.intersections import intersecting_triangles, shared_vertices, stacked_cloth
 from tests.support.scenes import two_panels
@@ -95,6 +95,22 @@ def test_matched_points_keep_corners_and_pair_both_sides():
     # Both sides advance together: the same fraction of the seam at every matched pair.
     np.testing.assert_allclose((ga - ga[0]) / (ga[-1] - ga[0]), (gb - gb[0]) / (gb[-1] - gb[0]), atol=1e-12)
     assert np.diff(ga).max() <= 1.0 + 1e-12 and np.diff(gb).max() <= 1.0 + 1e-12
+
+
+def test_a_gathered_seam_pairs_every_vertex_once_on_both_sides():
+    # jumpsuit_777_02's back waist: 8.2 grid steps of torso gathered onto 2.4 of trouser.
+    # Cut to one grid step on the long side, the short side's points came 0.18 steps apart,
+    # below SNAP, and shared a vertex: two torso vertices matched one trouser vertex, and
+    # closing the seam meant pulling the torso edge between them to zero length.
+    per = Perimeter(U, V, *RES)
+    k = np.arange(9)  # the pattern's samples, 1.02 and 0.30 grid steps apart
+    ga, gb = matched_points(10.0 + 1.02 * k, 30.0 - 0.296 * k, per, per)
+    assert min(np.abs(np.diff(ga)).min(), np.abs(np.diff(gb)).min()) >= CROWD - 1e-12
+    assert np.abs(np.diff(ga)).max() <= 1.2  # the long side still about a grid step
+    uv, F, (va, vb) = seamed_mesh(U, V, RES, [ga, gb])
+    _check_tiling(uv, F)
+    assert len(set(va.tolist())) == len(va) and len(set(vb.tolist())) == len(vb)  # one to one
+    np.testing.assert_allclose(uv[vb], per.uv(gb), atol=1e-12)
 
 
 def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
