@@ -328,7 +328,41 @@ def seam_meshes(shapes: dict, resolutions: dict, seams, rests: dict | None = Non
         vertices[name] = iter(seam_vertices)
     # Seam sides were appended in seam order, a before b: hand them back the same way.
     pairs = [(s.piece_a, next(vertices[s.piece_a]), s.piece_b, next(vertices[s.piece_b])) for s in seams]
-    return meshes, pairs
+    return meshes, _without_collapses(meshes, pairs)
+
+
+def _without_collapses(meshes: dict, pairs: list) -> list:
+    """The matched pairs, less each whose merge would join two vertices of one piece that
+    share a mesh edge without being matched to each other: a point of one side matched
+    to a stretch of the other (dress_00's shoulder seam, 0.15 grid steps on the front and
+    0.45 on the back) would pull that edge to zero length and hold its seam open. The
+    seam's samples still pull the stretch shut; its vertices merge one to one."""
+    edges = {}
+    for name, (_, faces) in meshes.items():
+        E = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+        edges[name] = set(map(tuple, E.tolist()))
+    members: dict = {}  # merge class (a list of (piece, vertex)) of each matched vertex
+
+    def collapses(A: list, B: list) -> bool:
+        return any(p == q and u != w and (min(u, w), max(u, w)) in edges[p] for p, u in A for q, w in B)
+
+    out = []
+    for name_a, va, name_b, vb in pairs:
+        keep = np.ones(len(va), bool)
+        for k, (u, w) in enumerate(zip(va.tolist(), vb.tolist())):
+            A = members.get((name_a, u), [(name_a, u)])
+            B = members.get((name_b, w), [(name_b, w)])
+            if A is B:
+                continue
+            direct = name_a == name_b and (min(u, w), max(u, w)) in edges[name_a]  # a dart's own pair
+            if collapses(A, B) and not (direct and len(A) == len(B) == 1):
+                keep[k] = False
+                continue
+            A.extend(B)
+            for key in A:
+                members[key] = A
+        out.append((name_a, va[keep], name_b, vb[keep]))
+    return out
 
 
 def _step(per: Perimeter) -> np.ndarray:

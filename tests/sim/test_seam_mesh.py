@@ -9,7 +9,9 @@ import pytest
 import sim.seams.contact as seams_mod
 from sim.model import ContactOptions
 from sim.checkpoint import read_checkpoint, write_checkpoint
-from sim.seams.mesh import CROWD, SNAP, THIN, Perimeter, matched_points, matched_uv_points, seamed_mesh
+from sim.seams.mesh import (CROWD, SNAP, THIN, Perimeter, matched_points, matched_uv_points, merged_labels,
+                            seam_meshes, seamed_mesh)
+from sim.seams.spec import SeamSpec
 
 from tests.support.intersections import intersecting_triangles, shared_vertices, stacked_cloth
 from tests.support.scenes import two_panels
@@ -111,6 +113,23 @@ def test_a_gathered_seam_pairs_every_vertex_once_on_both_sides():
     _check_tiling(uv, F)
     assert len(set(va.tolist())) == len(va) and len(set(vb.tolist())) == len(vb)  # one to one
     np.testing.assert_allclose(uv[vb], per.uv(gb), atol=1e-12)
+
+
+def test_a_point_sewn_to_a_stretch_merges_one_vertex_pair():
+    # dress_00's shoulder: a seam 0.15 grid steps long on the front and 0.45 on the back.
+    # The front's two points are one vertex (SNAP); matched to both back vertices, the
+    # merge would pull the back edge between them to zero length and hold the seam open.
+    step = U / (RES[0] - 1)
+    seam = SeamSpec("front", np.array([[0.0, 0.0], [0.15 * step, 0.0]]),
+                    "back", np.array([[0.0, 0.0], [0.45 * step, 0.0]]), "shoulder")
+    shape = (int(U) + 2, int(V) + 2)
+    meshes, [(_, va, _, vb)] = seam_meshes({"front": shape, "back": shape}, {"front": RES, "back": RES}, [seam])
+    n_front = len(meshes["front"][0])
+    labels = merged_labels(n_front + len(meshes["back"][0]), np.c_[va, vb + n_front])
+    F = np.concatenate([meshes["front"][1], meshes["back"][1] + n_front])
+    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    assert len(va) == 1 and not (labels[E[:, 0]] == labels[E[:, 1]]).any()  # no edge merged shut
+    assert np.allclose(meshes["back"][0][vb[0]], [0.0, 0.0])
 
 
 def test_closed_seam_is_sewn_shut_in_the_contact_mesh():
