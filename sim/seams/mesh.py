@@ -293,7 +293,8 @@ def seam_meshes(shapes: dict, resolutions: dict, seams, rests: dict | None = Non
     shapes / resolutions: control-net shape (n, m) and contact-mesh grid (a, b) by piece
     name; seams: sim.seams.SeamSpec; rests: rest control nets (n, m, 2) by name, so no
     triangle turns over in the rest shape. Returns {name: (uv, faces)} for the pieces with
-    a seam, and per seam (piece_a, vertices_a, piece_b, vertices_b), matched in order."""
+    a seam, and per seam (piece_a, vertices_a, piece_b, vertices_b), matched in order
+    (less the pairs whose merge would pull an edge shut: _without_collapses)."""
     perimeters = {name: Perimeter(n - 2.0, m - 2.0, *resolutions[name]) for name, (n, m) in shapes.items()}
     sides: dict[str, list] = {}
     for s in seams:

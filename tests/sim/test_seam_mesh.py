@@ -127,7 +127,7 @@ def test_a_gathered_seam_merges_no_edge_shut():
     # Cut to a grid step on the torso, the trouser's points come 0.18 steps apart, below
     # SNAP, and two of them share a vertex: two torso neighbours matched to it.
     step = U / (RES[0] - 1)
-    k = np.arange(9)  # the pattern's samples, 1.02 and 0.30 grid steps apart
+    k = np.arange(9)  # samples 0.51 and 0.148 grid steps apart (3.4 to 1, as there)
     torso = np.c_[(0.2 + 0.51 * k) * step, np.zeros(9)]
     trouser = np.c_[(0.2 + 0.148 * k) * step, np.zeros(9)]
     shape = (int(U) + 2, int(V) + 2)
