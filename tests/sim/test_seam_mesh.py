@@ -11,6 +11,7 @@ from sim.model import ContactOptions
 from sim.checkpoint import read_checkpoint, write_checkpoint
 from sim.seams.mesh import (SNAP, THIN, Perimeter, matched_points, matched_uv_points, merged_labels,
                             seam_meshes, seamed_mesh)
+from sim.embedding import points_at
 from sim.seams.spec import SeamSpec
 
 from tests.support.intersections import intersecting_triangles, shared_vertices, stacked_cloth
@@ -120,6 +121,24 @@ def test_a_point_sewn_to_a_stretch_merges_one_vertex_pair():
     meshes, pairs = seam_meshes({"front": shape, "back": shape}, {"front": RES, "back": RES}, [seam])
     assert len(pairs[0][1]) == 1 and _merged_shut(meshes, pairs) == 0
     assert np.allclose(meshes["back"][0][pairs[0][3][0]], [0.0, 0.0])
+
+
+def test_a_cut_keeps_every_pair_so_its_pieces_start_sewn():
+    # The shoulder seam above as a cut through one panel: its sides lie together at rest
+    # (the front's net 3 x the back's, so 0.15 front steps are 0.45 back steps). The
+    # pieces abut from the start, and an unmerged back vertex would sit on the front's
+    # edge, crossing it (jumpsuit_777_02's 6 mm cut: 3 pairs dropped, 7 edges crossing):
+    # both pairs merge, the back edge between them shut. Laid apart, one pair, as above.
+    step = U / (RES[0] - 1)
+    seam = SeamSpec("front", np.array([[0.0, 0.0], [0.15 * step, 0.0]]),
+                    "back", np.array([[0.0, 0.0], [0.45 * step, 0.0]]), "cut")
+    shape = (int(U) + 2, int(V) + 2)
+    net = np.stack(np.meshgrid(np.arange(shape[0]), np.arange(shape[1]), indexing="ij"), axis=-1) * 0.01
+    net -= points_at(net, np.zeros((1, 2)))[0]  # uv (0, 0) at the origin on both
+    for apart, kept, shut in ((0.0, 2, 1), (1.0, 1, 0)):
+        rests = {"front": 3.0 * net, "back": net + apart}
+        meshes, pairs = seam_meshes({"front": shape, "back": shape}, {"front": RES, "back": RES}, [seam], rests)
+        assert (len(pairs[0][1]), _merged_shut(meshes, pairs)) == (kept, shut)
 
 
 def test_a_gathered_seam_merges_no_edge_shut():
