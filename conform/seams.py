@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.patches import SIDES, Patch
-from sim.seams.spec import BoundaryInterval, PanelSeam, PatchSeam
+from sim.seams.spec import BoundaryInterval, PanelSeam, PatchSeam, side_length
 from sim.bspline import basis_matrix
 
 from .control_net import side_rows
@@ -47,7 +47,7 @@ def short_seams(panel_name: str, seams: list[PanelSeam], length: float) -> list[
     for s in seams:
         for panel, pts in ((s.panel_a, s.points_a), (s.panel_b, s.points_b)):
             pts = np.asarray(pts, float).reshape(-1, 2)
-            if panel == panel_name and len(pts) > 1 and _length(pts) < length:
+            if panel == panel_name and len(pts) > 1 and side_length(pts) < length:
                 out.append(pts)
     return out
 
@@ -60,12 +60,7 @@ def below_resolution(seam: PanelSeam, fit: dict[str, float]) -> bool:
     about 1 mm open however hard it pulls: GarmentCode's fitted shirts join front and back
     torso at the waist's side with a 1.46 mm and a 0.75 mm edge (jumpsuit_04's stitch39
     ended at rest at 1.003 mm, 0.86 mm and 0.998 mm in three runs)."""
-    return all(_length(pts) < fit[name] for name, pts in ((seam.panel_a, seam.points_a), (seam.panel_b, seam.points_b)))
-
-
-def _length(pts) -> float:
-    """Length of a seam side's polyline of rest points (K, 2)."""
-    return float(np.linalg.norm(np.diff(np.asarray(pts, float), axis=0), axis=1).sum())
+    return all(side_length(pts) < fit[name] for name, pts in ((seam.panel_a, seam.points_a), (seam.panel_b, seam.points_b)))
 
 
 def side_uv(side: int, t: np.ndarray, n: int, m: int) -> np.ndarray:

@@ -27,6 +27,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay
 
 from ..embedding import grid_faces, points_at
+from .spec import side_length
 
 THIN = 0.5  # keep seam samples at least this many grid steps apart (on both sides)
 CLEAR = 0.35  # drop grid boundary vertices closer than this (grid steps) to a seam vertex
@@ -328,8 +329,7 @@ def _closed_at_rest(seam, rests: dict) -> bool:
         return False
     a = points_at(rests[seam.piece_a], np.asarray(seam.uv_a, float))
     b = points_at(rests[seam.piece_b], np.asarray(seam.uv_b, float))
-    length = min(np.linalg.norm(np.diff(a, axis=0), axis=1).sum(), np.linalg.norm(np.diff(b, axis=0), axis=1).sum())
-    return bool(np.linalg.norm(a - b, axis=1).max() < 0.5 * length)
+    return bool(np.linalg.norm(a - b, axis=1).max() < 0.5 * min(side_length(a), side_length(b)))
 
 
 def _without_collapses(meshes: dict, pairs: list, closed=()) -> list:

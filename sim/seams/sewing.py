@@ -34,7 +34,7 @@ import numpy as np
 from ..intersect import Triangles
 from .energy import SeamEnergy
 from .routes import MIN_GAP, junction_waypoints, through_cloth, waypoints
-from .spec import SeamSpec
+from .spec import SeamSpec, side_length
 
 
 @dataclass
@@ -284,11 +284,8 @@ def _gather_waits(seams: list[SeamSpec], start: np.ndarray, junctions: list[np.n
     a, b = samples.Na @ C0, samples.Nb @ C0
     seam_of = np.repeat(np.arange(len(seams)), np.diff(start))
 
-    def length(x, k):
-        return float(np.linalg.norm(np.diff(x[start[k]:start[k + 1]], axis=0), axis=1).sum())
-
-    la = np.array([length(a, k) for k in range(len(seams))])
-    lb = np.array([length(b, k) for k in range(len(seams))])
+    la = np.array([side_length(a[start[k]:start[k + 1]]) for k in range(len(seams))])
+    lb = np.array([side_length(b[start[k]:start[k + 1]]) for k in range(len(seams))])
     gathered = (np.diff(start) >= 2) & (np.maximum(la, lb) >= GATHER * np.maximum(np.minimum(la, lb), 1e-9))
     out = []
     for k in np.flatnonzero(gathered):

@@ -66,3 +66,8 @@ class SeamSpec:
     # Seams (indices in the simulator's list) this one waits for: the tucks of a folded
     # pleat it is sewn onto (PatchSeam.after; sim.seams.sewing.SewingOptions.pleat_wait_gap).
     after: tuple[int, ...] = ()
+
+
+def side_length(points) -> float:
+    """Length of a seam side's polyline of points (K, d)."""
+    return float(np.linalg.norm(np.diff(np.asarray(points, float), axis=0), axis=1).sum())
