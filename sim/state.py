@@ -47,6 +47,7 @@ class State:
     seam_gaps: np.ndarray | None = None  # (S,) m, at the multipliers' last update
     seam_level_pushes: np.ndarray | None = None  # (S,) pushes of a gap that stopped shrinking
     seam_pushed_gaps: np.ndarray | None = None  # (S,) m, the widest a levelled gap was pushed at
+    seam_counted_gaps: np.ndarray | None = None  # (S,) m, the narrowest a counted push was at
     seam_pairs: np.ndarray | None = None  # (P,) matched vertex pairs: sim.seams.contact OPEN/SEWN/BLOCKED
     pleat_faces: np.ndarray | None = None  # (F,) bool: a seam onto a pleat no longer waits
 

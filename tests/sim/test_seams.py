@@ -201,11 +201,13 @@ def test_multipliers_close_an_eased_seam_that_a_penalty_leaves_open():
 
 def test_checkpoint_carries_the_multipliers(tmp_path):
     sim = _eased(True)
-    for _ in range(3):
+    for _ in range(4):
         sim.step()
-    sim.model.seam.level_pushes[:2] = 1  # and how often a levelled-off gap was pushed
-    sim.model.seam.pushed_gaps[:2] = 1e-3  # and how wide it was then
-    sim.step()
+    state = sim.state  # the seams closed: pushes of a still open gap written in
+    state.seam_level_pushes[:2] = 1  # how often a levelled-off gap was pushed
+    state.seam_pushed_gaps[:2] = 1e-3  # how wide it was then
+    state.seam_counted_gaps[:2] = 0.9e-3  # the narrowest a counted push was at
+    sim.state = state
     ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 4, "eased"))
     resumed = _eased(True)
     resumed.state = ck.state
@@ -215,13 +217,15 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     assert sim.model.seam.level_pushes.max() > 0
     np.testing.assert_array_equal(resumed.model.seam.pushed_gaps, sim.model.seam.pushed_gaps)
     assert sim.model.seam.pushed_gaps.max() > 0
+    np.testing.assert_array_equal(resumed.model.seam.counted_gaps, sim.model.seam.counted_gaps)
+    assert np.isfinite(sim.model.seam.counted_gaps).any()
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
     # A refined garment's model starts its seams anew: every seam field goes, the rest stays.
     fresh = sim.state.without_seams()
     seam_fields = [f.name for f in dataclasses.fields(fresh) if f.name.startswith("seam_")]
-    assert len(seam_fields) == 5  # seam_pairs is None here: no contact mesh to merge in
+    assert len(seam_fields) == 6  # seam_pairs is None here: no contact mesh to merge in
     assert all(getattr(sim.state, k) is not None for k in seam_fields if k != "seam_pairs")
     assert all(getattr(fresh, k) is None for k in seam_fields)
     assert np.array_equal(fresh.C, sim.C) and fresh.t == sim.state.t and sim.state.seam_multipliers is not None
@@ -291,11 +295,12 @@ def test_a_levelled_gap_that_still_gives_way_is_pushed_on_without_spending_its_p
     assert np.array_equal(seam.multipliers, before)
 
 
-def test_a_spent_gap_opened_by_a_new_load_is_pushed_again_and_a_swinging_one_is_not():
+def test_a_spent_gap_opened_by_a_new_load_is_pushed_again_and_a_swinging_one_only_a_few_times():
     """jumpsuit_02's waist junction spent its pushes while sewing, then opened from 0.4 to
     0.96 mm as gravity came on with none left. A gap wider than it was ever pushed at is
-    pushed again, for free; one that swings back and forth under that width (a blocked seam
-    on a moving body) is not, so the pushes a blocked seam gets stay bounded."""
+    pushed again, for free, and its count starts anew; one that then swings back and forth
+    under that width (a blocked seam on a moving body) spends that count and no more, so
+    the pushes a blocked seam gets stay bounded."""
     from sim.seams.energy import LEVEL_PUSHES, LOADED
 
     sim = two_panels(0.02)
@@ -316,11 +321,50 @@ def test_a_spent_gap_opened_by_a_new_load_is_pushed_again_and_a_swinging_one_is_
         before = np.abs(seam.multipliers).max()
         seam.update_multipliers(_gap_of(C, gap))
         assert np.abs(seam.multipliers).max() > before  # pushed ...
-        assert seam.level_pushes.max() == LEVEL_PUSHES  # ... for free
+        assert seam.level_pushes.max() == 0  # ... for free, counted anew
+    pushed = []
+    for g in (0.98 * gap, 1.02 * gap) * 5:  # swinging within 3 % of its widest
+        before = seam.multipliers.copy()
+        seam.update_multipliers(_gap_of(C, g))
+        pushed.append(not np.array_equal(seam.multipliers, before))
+    # Counted pushes up, free ones down (4 % closer than the last) while any are left.
+    assert LEVEL_PUSHES <= sum(pushed) <= 2 * LEVEL_PUSHES and not any(pushed[-4:])
+
+
+def test_a_spent_gap_that_creeps_on_below_its_pushes_gets_them_back_and_a_swinging_one_does_not():
+    """jumpsuit_777_02's back-waist junction spent its pushes closing 1-2 % a push (each
+    counted), then crept on to 1.005 mm at rest with none left. A gap HELPED x below the
+    narrowest it was pushed at has answered them: it is pushed again, its count starts
+    anew; each such refund needs a new low, so a gap swinging within that band gets none."""
+    from sim.seams.energy import HELPED, LEVEL_GAP, LEVEL_PUSHES
+
+    sim = two_panels(0.02)
+    seam, C = sim.model.seam, sim.C
+    seam.max_step = np.full_like(seam.max_step, np.inf)
+    gap = 0.01
+    seam.update_multipliers(_gap_of(C, gap))
+    for _ in range(LEVEL_PUSHES):  # levelled, closing 1 % a push: each push counts
+        gap *= 0.99
+        seam.update_multipliers(_gap_of(C, gap))
+    assert seam.level_pushes.min() == LEVEL_PUSHES
+    np.testing.assert_allclose(seam.counted_gaps, gap)
     before = seam.multipliers.copy()
-    for g in (0.98 * gap, 1.02 * gap, 0.98 * gap, 1.02 * gap):  # swinging within 3 % of its widest
+    seam.update_multipliers(_gap_of(C, gap))
+    assert np.array_equal(seam.multipliers, before)  # spent
+    low = 0.98 * HELPED * gap  # crept on, unpushed, below HELPED x its narrowest push
+    before = np.abs(seam.multipliers).max()
+    seam.update_multipliers(_gap_of(C, low))
+    assert np.abs(seam.multipliers).max() > before  # pushed again ...
+    assert seam.level_pushes.max() == 0  # ... its count started anew
+    for n in range(1, LEVEL_PUSHES + 1):  # stuck there: spends them again
+        seam.update_multipliers(_gap_of(C, low))
+        assert seam.level_pushes.min() == n
+    before = seam.multipliers.copy()
+    for g in (0.99 * low, 1.01 * low, 0.985 * low, 1.02 * low):  # swinging inside the band
         seam.update_multipliers(_gap_of(C, g))
     assert np.array_equal(seam.multipliers, before)
+    seam.update_multipliers(_gap_of(C, 0.5 * LEVEL_GAP))  # closed: answered, counted anew
+    assert seam.level_pushes.max() == 0 and np.isinf(seam.counted_gaps).all()
 
 
 def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
