@@ -326,7 +326,7 @@ class Model:
             state.seam_gaps = self.seam.last_gaps.copy()
             state.seam_level_pushes = self.seam.level_pushes.copy()
             state.seam_pushed_gaps = self.seam.pushed_gaps.copy()
-            state.seam_counted_gaps = self.seam.counted_gaps.copy()
+            state.seam_low_gaps = self.seam.low_gaps.copy()
             if self.seam_contact is not None:
                 state.seam_pairs = self.seam_contact.state.copy()
             if state.pleat_faces is None:
@@ -357,8 +357,8 @@ class Model:
                 self.seam.level_pushes = np.array(state.seam_level_pushes, np.int64)
             if state.seam_pushed_gaps is not None:
                 self.seam.pushed_gaps = np.array(state.seam_pushed_gaps, float)
-            if state.seam_counted_gaps is not None:
-                self.seam.counted_gaps = np.array(state.seam_counted_gaps, float)
+            if state.seam_low_gaps is not None:
+                self.seam.low_gaps = np.array(state.seam_low_gaps, float)
         if self.sewing is not None and state.pleat_faces is None:
             state.pleat_faces = np.zeros(len(self.sewing.faces), bool)
         if state.seam_pairs is not None:  # also back to fewer merged pairs (a retried step)

@@ -47,7 +47,7 @@ class State:
     seam_gaps: np.ndarray | None = None  # (S,) m, at the multipliers' last update
     seam_level_pushes: np.ndarray | None = None  # (S,) pushes of a gap that stopped shrinking
     seam_pushed_gaps: np.ndarray | None = None  # (S,) m, the widest a levelled gap was pushed at
-    seam_counted_gaps: np.ndarray | None = None  # (S,) m, the narrowest a counted push was at
+    seam_low_gaps: np.ndarray | None = None  # (S,) m, a levelled gap's low since it last closed or was loaded
     seam_pairs: np.ndarray | None = None  # (P,) matched vertex pairs: sim.seams.contact OPEN/SEWN/BLOCKED
     pleat_faces: np.ndarray | None = None  # (F,) bool: a seam onto a pleat no longer waits
 

@@ -29,10 +29,13 @@ would otherwise stop a seam that is not blocked: one the gap answers (jumpsuit_0
 four-seam waist junction closed 5-10 % a push, spent its cap and rested 1 mm open), and
 one at a gap LOADED x wider than it was ever pushed at, a new load (the same junction,
 capped while sewing, opened from 0.4 to 0.96 mm as gravity came on; with both free,
-0.49 mm). A blocked seam swinging on a moving body passes its widest only a few times,
-so its pushes stay bounded. And
-one update adds at most `max_step` to a multiplier (the simulator: twice what the cloth
-carries at 100 % strain, 2 E h): the first update (lambda = k g everywhere at once)
+0.49 mm). The count starts anew at each new low 3 % below the last (a gap still closing,
+if slowly, answered its pushes), when the gap closes and under a new load
+(jumpsuit_777_02's back-waist junction, spent while sewn shut and then opened by gravity:
+1.005-1.13 mm at rest with none left, 0.86 mm with its count anew). A blocked seam never
+closes and makes a new low or a new widest only a few times, so its pushes stay bounded.
+And one update adds at most `max_step` to a multiplier (the simulator: twice what the
+cloth carries at 100 % strain, 2 E h): the first update (lambda = k g everywhere at once)
 would otherwise double the pull on every seam still held open by contact or by a patch
 too coarse to follow it (dress_knife at the end of its sewing ramp: 843 samples at 6-20
 kN/m, up to 30x E h, and Newton at its cap down to dt / 8); later updates keep adding
@@ -102,7 +105,7 @@ class SeamEnergy(QuadraticEnergy):
         self.last_gaps = np.full(D.shape[0], np.inf)  # m, at the last multiplier update
         self.level_pushes = np.zeros(D.shape[0], np.int64)  # updates of a gap that stopped shrinking
         self.pushed_gaps = np.zeros(D.shape[0])  # m, the widest a levelled gap was pushed at
-        self.counted_gaps = np.full(D.shape[0], np.inf)  # m, the narrowest a counted push was at
+        self.low_gaps = np.full(D.shape[0], np.inf)  # m, its low since it last closed or was loaded
 
     def value(self, C):
         return (super().value(C) + float(np.sum(self._weighted_multipliers() * (self.D @ C)))
@@ -179,17 +182,17 @@ class SeamEnergy(QuadraticEnergy):
         # coming on after the sewing): pushed again whatever its count, for free. A blocked
         # seam swinging about one width passes its record only a few times.
         loaded = (self.pushed_gaps > 0) & (gaps > LOADED * self.pushed_gaps)
-        # Its pushes count anew once the gap answered them, if slowly: it closed (to
-        # LEVEL_GAP) or crept HELPED x below the narrowest it was pushed at; or once a new
-        # load opened it (jumpsuit_777_02's back-waist junction: spent while sewn shut,
-        # then opened by gravity; or spent at 1.1 mm and at rest at 1.005 mm with none
-        # left). A seam pressed onto the layer between its sides never closes and needs a
-        # new low 3 % below the last, or a new widest, for each: its pushes stay bounded.
-        crept = (gaps < HELPED * self.counted_gaps) & (gaps > LEVEL_GAP)
+        # The count starts anew once the gap answered its pushes, if slowly: at each new
+        # low HELPED x below the last (still closing) and when it closed (LEVEL_GAP); and
+        # under a new load (jumpsuit_777_02's back-waist junction: spent while sewn shut,
+        # then opened by gravity; or spent at 1.1 mm and at rest at 1.005 mm). A seam
+        # pressed onto the layer between its sides never closes and makes a new low or a
+        # new widest only a few times: its pushes stay bounded.
+        crept = (gaps < HELPED * self.low_gaps) & (gaps > LEVEL_GAP)
         anew = crept | (gaps <= LEVEL_GAP) | loaded
         self.level_pushes[anew] = 0
-        self.counted_gaps[anew] = np.inf
-        self.counted_gaps[crept] = gaps[crept]
+        self.low_gaps[anew] = np.inf
+        self.low_gaps[crept] = gaps[crept]
         level = ~shrinking & (gaps < 1.1 * self.last_gaps) & (gaps > LEVEL_GAP)
         level &= (self.level_pushes < LEVEL_PUSHES) | loaded
         closing = (shrinking | level) & self.active & ~self.routed
@@ -198,7 +201,7 @@ class SeamEnergy(QuadraticEnergy):
         pushed = closing & level
         counted = pushed & (gaps > HELPED * self.last_gaps) & ~loaded
         self.level_pushes[counted] += 1
-        self.counted_gaps[counted] = np.minimum(self.counted_gaps[counted], gaps[counted])
+        self.low_gaps[counted] = np.minimum(self.low_gaps[counted], gaps[counted])
         self.pushed_gaps[pushed] = np.maximum(self.pushed_gaps[pushed], gaps[pushed])
         step = self.k[closing, None] * g[closing]
         size = np.linalg.norm(step, axis=1)

@@ -206,7 +206,7 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     state = sim.state  # the seams closed: pushes of a still open gap written in
     state.seam_level_pushes[:2] = 1  # how often a levelled-off gap was pushed
     state.seam_pushed_gaps[:2] = 1e-3  # how wide it was then
-    state.seam_counted_gaps[:2] = 0.9e-3  # the narrowest a counted push was at
+    state.seam_low_gaps[:2] = 0.9e-3  # its low since it last closed
     sim.state = state
     ck = read_checkpoint(write_checkpoint(tmp_path / "c.npz", sim.state, 4, "eased"))
     resumed = _eased(True)
@@ -217,8 +217,8 @@ def test_checkpoint_carries_the_multipliers(tmp_path):
     assert sim.model.seam.level_pushes.max() > 0
     np.testing.assert_array_equal(resumed.model.seam.pushed_gaps, sim.model.seam.pushed_gaps)
     assert sim.model.seam.pushed_gaps.max() > 0
-    np.testing.assert_array_equal(resumed.model.seam.counted_gaps, sim.model.seam.counted_gaps)
-    assert np.isfinite(sim.model.seam.counted_gaps).any()
+    np.testing.assert_array_equal(resumed.model.seam.low_gaps, sim.model.seam.low_gaps)
+    assert np.isfinite(sim.model.seam.low_gaps).any()
     sim.step()
     resumed.step()
     assert np.array_equal(resumed.C, sim.C)  # resumed = uninterrupted
@@ -333,9 +333,9 @@ def test_a_spent_gap_opened_by_a_new_load_is_pushed_again_and_a_swinging_one_onl
 
 def test_a_spent_gap_that_creeps_on_below_its_pushes_gets_them_back_and_a_swinging_one_does_not():
     """jumpsuit_777_02's back-waist junction spent its pushes closing 1-2 % a push (each
-    counted), then crept on to 1.005 mm at rest with none left. A gap HELPED x below the
-    narrowest it was pushed at has answered them: it is pushed again, its count starts
-    anew; each such refund needs a new low, so a gap swinging within that band gets none."""
+    counted), then crept on to 1.005 mm at rest with none left. A gap HELPED x below its
+    last low answered them: it is pushed again, its count starts anew; each such start
+    needs a new low, so a gap swinging within that band gets no more. Closed, it starts anew."""
     from sim.seams.energy import HELPED, LEVEL_GAP, LEVEL_PUSHES
 
     sim = two_panels(0.02)
@@ -347,11 +347,11 @@ def test_a_spent_gap_that_creeps_on_below_its_pushes_gets_them_back_and_a_swingi
         gap *= 0.99
         seam.update_multipliers(_gap_of(C, gap))
     assert seam.level_pushes.min() == LEVEL_PUSHES
-    np.testing.assert_allclose(seam.counted_gaps, gap)
+    np.testing.assert_allclose(seam.low_gaps, gap)
     before = seam.multipliers.copy()
     seam.update_multipliers(_gap_of(C, gap))
     assert np.array_equal(seam.multipliers, before)  # spent
-    low = 0.98 * HELPED * gap  # crept on, unpushed, below HELPED x its narrowest push
+    low = 0.98 * HELPED * gap  # crept on, unpushed, below HELPED x its last low
     before = np.abs(seam.multipliers).max()
     seam.update_multipliers(_gap_of(C, low))
     assert np.abs(seam.multipliers).max() > before  # pushed again ...
@@ -364,7 +364,7 @@ def test_a_spent_gap_that_creeps_on_below_its_pushes_gets_them_back_and_a_swingi
         seam.update_multipliers(_gap_of(C, g))
     assert np.array_equal(seam.multipliers, before)
     seam.update_multipliers(_gap_of(C, 0.5 * LEVEL_GAP))  # closed: answered, counted anew
-    assert seam.level_pushes.max() == 0 and np.isinf(seam.counted_gaps).all()
+    assert seam.level_pushes.max() == 0 and np.isinf(seam.low_gaps).all()
 
 
 def _seam_over_a_layer(h: float = 2e-3) -> Simulator:
