@@ -54,6 +54,7 @@ from ..verify import frame_crossings, shared_vertices, stack_meshes
 from .drawstring import body_mesh, draw_in
 from .frame import BodyFrame, pattern_up, read_body
 from .girth import loose_opening, trunk_centre
+from .halves import into_own_half
 from .layout import PlacementError, arms_out_of_the_way, lift_over_body, out_of_seam_paths, separate
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
@@ -158,6 +159,7 @@ def dress(pattern, body, outdir, overrides: dict | None = None, on_frame=None) -
         report["moved_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.moved.items()}
         report["lifted_panels_mm"] = {k: round(v * 1e3, 1) for k, v in placed.lifted.items()}
         report["out_of_seam_paths_mm"] = {k: round(v * 1e3, 1) for k, v in placed.out_of_paths.items()}
+        report["bent_into_own_half_mm"] = {k: round(v * 1e3, 1) for k, v in placed.bent.items()}
         report["raised_arms_deg"] = placed.raise_arms
         report["seams_below_resolution"] = placed.below_resolution
         obstacle = {"name": "body", "mesh": str(body.resolve()), "scale": frame.scale, "up": frame.up,
@@ -214,6 +216,9 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     panels = [ps.panel_of(p.name) for p in ps.patches]
     # A panel laid inside another seam's closing paths would be sewn into that seam.
     out = out_of_seam_paths(ps.patches, ps.seams, body_V, body_F, panels)
+    # Two trouser cuffs overlapping between the legs, which no rigid move parts, would be
+    # sewn through each other.
+    bent = into_own_half(ps.patches, ps.seams, body_V, body_F, panels)
     # A skirt laid over the hands is sewn with the arms raised (lowered as the body grows).
     angle, arms = arms_out_of_the_way(ps.patches, ps.seams, body_V, body_F)
     grow = (0.5 * options.sew_time, options.sew_time)
@@ -221,7 +226,7 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     lifted = lift_over_body(ps.patches, ps.seams, start, body_F, panels)
     shrunk = ObstacleGeometry("body", body_V, body_F, inset=options.inset, raise_arms=angle, grow=grow, arms=arms)
     layout = separate(ps.patches, shrunk.at(0.0), body_F, panels=panels)
-    layout.lifted, layout.raise_arms, layout.out_of_paths = lifted, angle, out
+    layout.lifted, layout.raise_arms, layout.out_of_paths, layout.bent = lifted, angle, out, bent
     layout.below_resolution = sorted({n for q in ps.quality.values() for n in q.get("seams_below_resolution", [])})
     save_patchset(outdir / "patches.json", ps)
     return layout

@@ -47,6 +47,7 @@ class Layout:
     lifted: dict[str, float] = field(default_factory=dict)  # lift_over_body, m
     raise_arms: float = 0.0  # arms_out_of_the_way, degrees
     out_of_paths: dict[str, float] = field(default_factory=dict)  # out_of_seam_paths, m
+    bent: dict[str, float] = field(default_factory=dict)  # halves.into_own_half, m
     below_resolution: list[str] = field(default_factory=list)  # seams conform dropped (conform/pipeline.py)
 
 
