@@ -455,11 +455,90 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
         if length > 1e-6:  # a panel flat in a plane through the axis has none
             directions.append(radial / length)
         best = _least_move(index, start, directions, group, found, lambda: caught(group), crosses)
+        turned = None
+        if np.linalg.norm(best) > FAR:
+            # So far out, the group's seams to the rest open by as much (upper_garment_777_03's
+            # fan sleeve, 28 cm straight out, left its armhole 28 cm open): turned in its own
+            # plane onto those seams instead, where that frees it with a shorter move.
+            turned = _turned_free(index, start, seams, patches, directions, group, found, caught, crosses)
+        if turned is not None and np.linalg.norm(turned[1]) < np.linalg.norm(best) - OUT_STEP:
+            for n in names:
+                index[n].world = turned[0][n] + turned[1]
+            moved.update({n: float(np.linalg.norm(index[n].world - start[n], axis=-1).max()) for n in names})
+            continue
         for n in names:
             index[n].world = start[n] + best
         if best.any():
             moved.update({n: float(np.linalg.norm(best)) for n in names})
     return moved
+
+
+FAR = 0.2  # m, a rigid move beyond which a caught group is turned onto its seams instead, if that frees it
+
+
+def _turned_free(index, start, seams, patches, directions, group, found, caught, crosses):
+    """(turned control points {name: world}, the least move after the turn) that frees the
+    group (nothing of it caught, nothing new caught or crossed), or None. The patches are
+    left at `start`."""
+    turned = _turned_onto_seams(start, seams, patches)
+    if turned is None:
+        return None
+    names = list(start)
+
+    def at(move) -> bool:  # is the group free, turned and moved by `move`?
+        for n in names:
+            index[n].world = turned[n] + move
+        now = caught(group)
+        return not (any(panel in group for _, panel in now) or now - found or crosses())
+
+    then = np.zeros(3) if at(np.zeros(3)) else _least_move(index, turned, directions, group, found,
+                                                         lambda: caught(group), crosses)
+    free = at(then)
+    for n in names:
+        index[n].world = start[n]
+    return (turned, then) if free else None
+
+
+def _turned_onto_seams(start: dict[str, np.ndarray], seams, patches) -> dict[str, np.ndarray] | None:
+    """The control points of the patches in `start` (name: world), turned about the normal
+    of their common plane and moved in it to fit their seams to the other patches best
+    (least squares, Kabsch in 2D); None when they share no plane or no such seam."""
+    index = {p.name: p for p in patches}
+    normals = [np.linalg.svd(X - X.mean(axis=0), full_matrices=False)[2] for X in
+               (w.reshape(-1, 3) for w in start.values())]
+    normal = normals[0][2]
+    # One plane's normal for all: each patch flat and parallel to the first (a sleeve's front and back).
+    flat = all(abs(vt[2] @ normal) > PARALLEL for vt in normals)
+    mine, theirs = [], []
+    for s in seams:
+        if (s.patch_a in start) == (s.patch_b in start) or s.patch_a not in index or s.patch_b not in index:
+            continue
+        (p, uv_p), (q, uv_q) = ((s.patch_a, s.uv_a), (s.patch_b, s.uv_b))[:: 1 if s.patch_a in start else -1]
+        mine.append(points_at(start[p], uv_p))
+        theirs.append(points_at(index[q].world, uv_q))
+    if not flat or not mine:
+        return None
+    e1 = normals[0][0]
+    e2 = np.cross(normal, e1)
+
+    def plane(X):  # (K, 3) -> (K, 2) in-plane coordinates
+        return np.c_[X @ e1, X @ e2]
+
+    P, Q = plane(np.concatenate(mine)), plane(np.concatenate(theirs))
+    pc, qc = P.mean(axis=0), Q.mean(axis=0)
+    x, y = P - pc, Q - qc
+    angle = np.arctan2(np.sum(x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0]), np.sum(x * y))
+    R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    out = {}
+    for n, w in start.items():
+        X = w.reshape(-1, 3)
+        uv = (plane(X) - pc) @ R.T + qc
+        out[n] = np.ascontiguousarray((np.outer(X @ normal, normal) + np.outer(uv[:, 0], e1)
+                                       + np.outer(uv[:, 1], e2)).reshape(w.shape))
+    return out
+
+
+PARALLEL = 0.99  # |cos| between the normals of panels turned together
 
 
 def _merged(sets: list[set[str]]) -> list[set[str]]:
@@ -509,7 +588,7 @@ def _least_move(index, start, directions, group, found, caught, crosses) -> np.n
     return best
 
 
-ARM_ANGLES = (20.0, 40.0, 60.0)  # degrees, tried in turn
+ARM_ANGLES = (20.0, 40.0, 60.0, 80.0)  # degrees, tried in turn
 
 
 def arms_out_of_the_way(patches, seams, body_V: np.ndarray, body_F: np.ndarray) -> tuple[float, list]:

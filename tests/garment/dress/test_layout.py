@@ -299,3 +299,67 @@ def test_a_skirt_round_the_body_caught_in_the_side_seams_stays():
     assert out_of_seam_paths(patches, seams, V, F) == {}
     for p, w in zip(skirt, before):
         np.testing.assert_array_equal(p.world, w)
+
+
+def test_turned_onto_seams_undoes_a_turn_in_the_panels_plane():
+    """A sleeve's front and back, turned 50 degrees about y and moved away from the armhole
+    they are sewn to, are put back by the 2D least-squares fit: every seam sample lands on
+    its partner."""
+    from garment.dress.layout import _turned_onto_seams
+    from sim.seams.spec import PatchSeam
+
+    torso_f = Patch.rectangle("tf", (0.3, 0.3), (6, 6), origin=(0.0, -0.1, 1.1), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    torso_b = Patch.rectangle("tb", (0.3, 0.3), (6, 6), origin=(0.0, 0.1, 1.1), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    # The sleeve's panels start on the torso's armhole edge (x = 0.3 m), going out.
+    sleeve = {n: Patch.rectangle(n, (0.25, 0.3), (5, 6), origin=(0.3, y, 1.1), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+              for n, y in (("sf", -0.1), ("sb", 0.1))}
+    edge = np.c_[np.zeros(6), np.linspace(0, 4, 6)]  # the sleeve's inner side, u = 0
+    armhole = np.c_[np.full(6, 4.0), np.linspace(0, 4, 6)]  # the torso's outer side, u = 4
+    seams = [PatchSeam("arm_f", "sf", "tf", edge, armhole, [], []), PatchSeam("arm_b", "tb", "sb", armhole, edge, [], [])]
+    angle = np.radians(50.0)
+    turn = np.array([[np.cos(angle), 0, -np.sin(angle)], [0, 1, 0], [np.sin(angle), 0, np.cos(angle)]])
+    pivot = np.array([0.3, 0.0, 1.1])
+    start = {n: (p.world - pivot) @ turn.T + pivot + [0.08, 0.0, -0.12] for n, p in sleeve.items()}
+    out = _turned_onto_seams(start, seams, [torso_f, torso_b, *sleeve.values()])
+    for n, p in sleeve.items():
+        np.testing.assert_allclose(out[n], p.world, atol=1e-9)
+
+
+def test_a_sleeve_only_a_far_move_frees_is_turned_onto_its_armhole():
+    """A fan sleeve laid hanging down across the side seam (its underarm between the
+    torso's front and back), its armhole meant for the torso's side above the side seam
+    (upper_garment_777_03): moved, it is freed only 24 cm out, its armhole as far open;
+    turned in its plane onto the armhole it is freed and its armhole seam nearly shut."""
+    from garment.dress.layout import FAR, out_of_seam_paths, seams_through_cloth
+    from sim.embedding import points_at
+    from sim.seams.spec import PatchSeam
+
+    body = torso(radius=0.08)
+    V, F = np.asarray(body.vertices), np.asarray(body.faces, np.int32)
+    front = Patch.rectangle("front", (0.5, 0.5), (8, 8), origin=(-0.25, -0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    back = Patch.rectangle("back", (0.5, 0.5), (8, 8), origin=(-0.25, 0.25, 1.0), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+    # The sleeve hangs from z = 1.3 m down to 0.95, x 0.03..0.47, between front and back:
+    # the side seam's paths (x = 0.25 m, z 1.0..1.3) cross it, and it is freed 24 cm out
+    # or in, or more up or down.
+    sleeve = [Patch.rectangle(n, (0.44, 0.35), (6, 6), origin=(0.03, y, 0.95), axis_u=(1, 0, 0), axis_v=(0, 0, 1))
+              for n, y in (("sleeve_f", -0.1), ("sleeve_b", 0.1))]
+
+    def side(p, u, v0, v1, k=7):
+        return np.c_[np.full(k, u), np.linspace(v0, v1, k)]
+
+    top = np.c_[np.linspace(0, 4, 7), np.full(7, 4.0)]  # the sleeve's top edge
+    seams = [PatchSeam("side", "front", "back", side(front, 6.0, 0.0, 3.5), side(back, 6.0, 0.0, 3.5), [], []),
+             PatchSeam("arm_f", "sleeve_f", "front", top, side(front, 6.0, 3.6, 6.0), [], []),
+             PatchSeam("arm_b", "sleeve_b", "back", top, side(back, 6.0, 3.6, 6.0), [], []),
+             PatchSeam("under", "sleeve_f", "sleeve_b", side(None, 0.0, 0.0, 4.0), side(None, 0.0, 0.0, 4.0), [], [])]
+    patches = [front, back, *sleeve]
+    caught = {k for k, n in seams_through_cloth(patches, seams).items() if n >= 3}
+    assert caught == {("side", "sleeve_f"), ("side", "sleeve_b")}
+    moved = out_of_seam_paths(patches, seams, V, F)
+    assert set(moved) == {"sleeve_f", "sleeve_b"}
+    assert not {k for k, n in seams_through_cloth(patches, seams).items() if n >= 3}
+    assert independent_pairs(patches, body) == 0
+    index = {p.name: p for p in patches}
+    gap = max(np.linalg.norm(points_at(index[s.patch_a].world, s.uv_a) - points_at(index[s.patch_b].world, s.uv_b),
+                             axis=1).max() for s in seams if s.name.startswith("arm"))
+    assert gap < FAR  # moved 24 cm, the armhole would be 24 cm open or more
