@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import CAUGHT, _merged, crossings, seams_through_cloth
+from .layout import CAUGHT, _merged, _Surface, crossings, seams_through_cloth
 
 RADIUS = 0.06  # m, of the quarter turn: a knot span or more, so the B-spline follows it
 WALL = {1: 0.015, -1: 0.03}  # m, from the mid-plane, of a front (turning +y) and a back (-y) panel's bent part
@@ -48,7 +48,8 @@ def into_own_half(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panels
     then closes through those panels and nothing crosses that did not. Returns each bent
     patch's width bent round (m)."""
     panels = panels or [p.name for p in patches]
-    found = {k for k, n in seams_through_cloth(patches, seams, panels).items() if n >= CAUGHT}
+    surface = _Surface.of(patches)  # sampled once: bends move control points, not the sampling
+    found = {k for k, n in seams_through_cloth(patches, seams, panels, surface).items() if n >= CAUGHT}
     if not found:
         return {}
     members: dict[str, list] = {}
@@ -63,11 +64,11 @@ def into_own_half(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panels
                       for seam, caught in found])
     bent: dict[str, float] = {}
     for involved in groups:
-        bent.update(_bend_group(patches, seams, panels, body_V, body_F, members, involved, found, middle))
+        bent.update(_bend_group(patches, seams, panels, body_V, body_F, surface, members, involved, found, middle))
     return bent
 
 
-def _bend_group(patches, seams, panels, body_V, body_F, members, involved, found, middle) -> dict[str, float]:
+def _bend_group(patches, seams, panels, body_V, body_F, surface, members, involved, found, middle) -> dict[str, float]:
     """into_own_half for one group of pattern panels (`involved`); {} when it is not kept."""
     bendable = [p for panel in sorted(involved) for p in members[panel] if _reaches_across(p.world, middle[0])]
     if not bendable:
@@ -76,7 +77,7 @@ def _bend_group(patches, seams, panels, body_V, body_F, members, involved, found
     band = (body_V[:, 2] > points[:, 2].min() - RADIUS) & (body_V[:, 2] < points[:, 2].max() + RADIUS)
     if np.any(np.abs(body_V[band, 0] - middle[0]) < max(WALL.values()) + RADIUS):
         return {}  # the body fills the middle there (the trunk): no half to bend into
-    before = {k: len(v) for k, v in crossings(patches, body_V, body_F).items()}
+    before = {k: len(v) for k, v in crossings(patches, body_V, body_F, surface).items()}
     start = {p.name: p.world.copy() for p in bendable}
     bent: dict[str, float] = {}
     for p in bendable:
@@ -88,8 +89,8 @@ def _bend_group(patches, seams, panels, body_V, body_F, members, involved, found
         wall = middle[0] + side * WALL[int(turn)]
         p.world = np.ascontiguousarray(bend(p.world, side, turn, wall))
         bent[p.name] = float(np.max(-side * (w[:, 0] - wall - side * RADIUS)))
-    after = {k for k, n in seams_through_cloth(patches, seams, panels).items() if n >= CAUGHT}
-    crosses = any(len(v) > before.get(k, 0) for k, v in crossings(patches, body_V, body_F).items())
+    after = {k for k, n in seams_through_cloth(patches, seams, panels, surface).items() if n >= CAUGHT}
+    crosses = any(len(v) > before.get(k, 0) for k, v in crossings(patches, body_V, body_F, surface).items())
     if not bent or crosses or after - found or any(panel in involved for _, panel in after):
         for p in bendable:
             p.world = start[p.name]

@@ -460,7 +460,7 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
             # So far out, the group's seams to the rest open by as much (upper_garment_777_03's
             # fan sleeve, 28 cm straight out, left its armhole 28 cm open): turned in its own
             # plane onto those seams instead, where that frees it with a shorter move.
-            turned = _turned_free(index, start, seams, patches, directions, group, found, caught, crosses)
+            turned = _turned_free(index, start, seams, directions, group, found, caught, crosses)
         if turned is not None and np.linalg.norm(turned[1]) < np.linalg.norm(best) - OUT_STEP:
             for n in names:
                 index[n].world = turned[0][n] + turned[1]
@@ -476,11 +476,11 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
 FAR = 0.2  # m, a rigid move beyond which a caught group is turned onto its seams instead, if that frees it
 
 
-def _turned_free(index, start, seams, patches, directions, group, found, caught, crosses):
+def _turned_free(index, start, seams, directions, group, found, caught, crosses):
     """(turned control points {name: world}, the least move after the turn) that frees the
     group (nothing of it caught, nothing new caught or crossed), or None. The patches are
     left at `start`."""
-    turned = _turned_onto_seams(start, seams, patches)
+    turned = _turned_onto_seams(start, seams, index)
     if turned is None:
         return None
     names = list(start)
@@ -499,11 +499,11 @@ def _turned_free(index, start, seams, patches, directions, group, found, caught,
     return (turned, then) if free else None
 
 
-def _turned_onto_seams(start: dict[str, np.ndarray], seams, patches) -> dict[str, np.ndarray] | None:
+def _turned_onto_seams(start: dict[str, np.ndarray], seams, index) -> dict[str, np.ndarray] | None:
     """The control points of the patches in `start` (name: world), turned about the normal
-    of their common plane and moved in it to fit their seams to the other patches best
-    (least squares, Kabsch in 2D); None when they share no plane or no such seam."""
-    index = {p.name: p for p in patches}
+    of their common plane and moved in it to fit their seams to the other patches (index:
+    name: patch) best (least squares, Kabsch in 2D); None when they share no plane or no
+    such seam."""
     normals = [np.linalg.svd(X - X.mean(axis=0), full_matrices=False)[2] for X in
                (w.reshape(-1, 3) for w in start.values())]
     normal = normals[0][2]

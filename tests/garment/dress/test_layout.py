@@ -320,7 +320,7 @@ def test_turned_onto_seams_undoes_a_turn_in_the_panels_plane():
     turn = np.array([[np.cos(angle), 0, -np.sin(angle)], [0, 1, 0], [np.sin(angle), 0, np.cos(angle)]])
     pivot = np.array([0.3, 0.0, 1.1])
     start = {n: (p.world - pivot) @ turn.T + pivot + [0.08, 0.0, -0.12] for n, p in sleeve.items()}
-    out = _turned_onto_seams(start, seams, [torso_f, torso_b, *sleeve.values()])
+    out = _turned_onto_seams(start, seams, {p.name: p for p in (torso_f, torso_b, *sleeve.values())})
     for n, p in sleeve.items():
         np.testing.assert_allclose(out[n], p.world, atol=1e-9)
 
