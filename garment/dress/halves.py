@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import CAUGHT, _merged, _Surface, crossings, seams_through_cloth
+from .groups import members, merged
+from .layout import Surface, crossings
+from .paths import CAUGHT, seams_through_cloth
 
 RADIUS = 0.06  # m, of the quarter turn: a knot span or more, so the B-spline follows it
 WALL = {1: 0.015, -1: 0.03}  # m, from the mid-plane, of a front (turning +y) and a back (-y) panel's bent part
@@ -48,29 +50,27 @@ def into_own_half(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panels
     then closes through those panels and nothing crosses that did not. Returns each bent
     patch's width bent round (m)."""
     panels = panels or [p.name for p in patches]
-    surface = _Surface.of(patches)  # sampled once: bends move control points, not the sampling
+    surface = Surface.of(patches)  # sampled once: bends move control points, not the sampling
     found = {k for k, n in seams_through_cloth(patches, seams, panels, surface).items() if n >= CAUGHT}
     if not found:
         return {}
-    members: dict[str, list] = {}
-    for p, panel in zip(patches, panels):
-        members.setdefault(panel, []).append(p)
+    patches_of = members(patches, panels)
     group_of = {p.name: panel for p, panel in zip(patches, panels)}
     by_name = {s.name: s for s in seams}
     middle = np.asarray(body_V, float)[:, :2].mean(axis=0)
 
     # The panels of each catching seam with those it catches; groups sharing a panel joined.
-    groups = _merged([{caught, group_of[by_name[seam].patch_a], group_of[by_name[seam].patch_b]}
+    groups = merged([{caught, group_of[by_name[seam].patch_a], group_of[by_name[seam].patch_b]}
                       for seam, caught in found])
     bent: dict[str, float] = {}
     for involved in groups:
-        bent.update(_bend_group(patches, seams, panels, body_V, body_F, surface, members, involved, found, middle))
+        bent.update(_bend_group(patches, seams, panels, body_V, body_F, surface, patches_of, involved, found, middle))
     return bent
 
 
-def _bend_group(patches, seams, panels, body_V, body_F, surface, members, involved, found, middle) -> dict[str, float]:
+def _bend_group(patches, seams, panels, body_V, body_F, surface, patches_of, involved, found, middle) -> dict[str, float]:
     """into_own_half for one group of pattern panels (`involved`); {} when it is not kept."""
-    bendable = [p for panel in sorted(involved) for p in members[panel] if _reaches_across(p.world, middle[0])]
+    bendable = [p for panel in sorted(involved) for p in patches_of[panel] if _reaches_across(p.world, middle[0])]
     if not bendable:
         return {}
     points = np.concatenate([p.world.reshape(-1, 3) for p in bendable])

@@ -55,7 +55,8 @@ from .drawstring import body_mesh, draw_in
 from .frame import BodyFrame, pattern_up, read_body
 from .girth import loose_opening, trunk_centre
 from .halves import into_own_half
-from .layout import PlacementError, arms_out_of_the_way, lift_over_body, out_of_seam_paths, separate
+from .layout import PlacementError, arms_out_of_the_way, lift_over_body, separate
+from .paths import out_of_seam_paths
 
 STATUSES = ("ok", "conform", "placement", "sewing", "intersection", "timeout", "nan")
 

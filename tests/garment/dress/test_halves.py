@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from garment.dress.halves import RADIUS, WALL, bend, into_own_half
-from garment.dress.layout import seams_through_cloth
+from garment.dress.paths import seams_through_cloth
 from sim.patches import Patch
 from sim.seams.spec import PatchSeam
 from tests.garment.dress.test_layout import independent_pairs, torso
