@@ -17,6 +17,7 @@ from sim.intersect import crossing_pairs
 from .groups import hanging, members, merged
 from .layout import CLEARANCE, Surface, crossings
 
+
 def seams_through_cloth(patches, seams, panels=None, surface: Surface | None = None,
                         moving: set[str] | None = None) -> dict[tuple[str, str], int]:
     """Seams whose closing paths (straight from each sample to its partner) pass through
