@@ -64,7 +64,7 @@ class ConformOptions:
     wanted at seams shorter than grading.SHORT knot spans (tucks, dart legs), metres - the
     net is graded towards them (conform/grading.py); None keeps it uniform. fold_pleats:
     fold the panels' tucks and knife pleats into their 3D placement, so sewing starts with
-    the layers in order (conform/pleats.py)."""
+    the layers in order (conform/pleats.py; panels without tucks are untouched)."""
 
     knot_span: float = 0.02
     control_points: tuple[int, int] | None = None
@@ -76,7 +76,7 @@ class ConformOptions:
     mips: MipsOptions = field(default_factory=MipsOptions)
     split: str = "auto"
     seam_span: float | None = None
-    fold_pleats: bool = False
+    fold_pleats: bool = True
 
     @property
     def finest_span(self) -> float:

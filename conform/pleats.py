@@ -297,11 +297,13 @@ def _sewn_elsewhere(panel: str, seams: list[PanelSeam], origin, e, near: float) 
     return np.concatenate(list(by_seam.values())) if by_seam else np.zeros(0)
 
 
-def _sewn_by_seam(panel: str, seams: list[PanelSeam], origin, e, near: float) -> dict[str, np.ndarray]:
-    """_sewn_elsewhere's points by the seam that sews them (seams with none left out)."""
+def _sewn_by_seam(panel: str, seams: list[PanelSeam], origin, e, near: float,
+                  same_panel: set | None = None) -> dict[str, np.ndarray]:
+    """_sewn_elsewhere's points by the seam that sews them (seams with none left out);
+    with same_panel (tuck names), the panel's seams with itself other than those too."""
     out: dict[str, list[np.ndarray]] = {}
     for s in seams:
-        if s.panel_a == s.panel_b:
+        if s.panel_a == s.panel_b and (same_panel is None or s.name in same_panel):
             continue
         for name, p in ((s.panel_a, s.points_a), (s.panel_b, s.points_b)):
             if name == panel and len(p):
@@ -313,10 +315,16 @@ def _sewn_by_seam(panel: str, seams: list[PanelSeam], origin, e, near: float) ->
 
 def pleat_faces(fold: PleatFold, seams: list[PanelSeam]) -> dict[str, tuple[str, ...]]:
     """The seams that join other panels to the layers of a folded pleat (a waistband
-    onto its face), each with the tucks of that pleat: the simulator lets such a seam
-    pull only once those tucks have nearly closed (sim.simulator.Simulator.PLEAT_WAIT), so the
-    other panel comes down onto a pleat already folded rather than into the fold."""
-    sewn = _sewn_by_seam(fold.panel, seams, fold.origin, fold.direction, max(_depth(t) for t in fold.tucks))
+    onto its face), or the panel to itself across them (a dart from the pleat's folds),
+    each with the tucks of that pleat: the simulator lets such a seam pull only once
+    those tucks have nearly closed (SewingOptions.pleat_wait_gap), so the other panel
+    comes down onto a pleat already folded rather than into the fold, and a dart closes
+    over the folded layers instead of round one of them (dress_knife's seam43: pulled
+    from the start, panel13's innermost layer came between its legs and held it 3.3 mm
+    open)."""
+    tucks_of = {t.seam for t in fold.tucks}
+    sewn = _sewn_by_seam(fold.panel, seams, fold.origin, fold.direction, max(_depth(t) for t in fold.tucks),
+                         same_panel=tucks_of)
     faces: dict[str, tuple[str, ...]] = {}
     for g0, g1 in fold.groups:
         group = [t for t in fold.tucks if g0 <= t.roots[0] and t.roots[1] <= g1]

@@ -11,6 +11,7 @@ status is then 1.
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -296,9 +297,9 @@ def register(sub) -> None:
     c.add_argument("--seam-span", type=float, metavar="MM",
                    help="grade the control nets towards this knot span at seams shorter than two knot spans "
                         "(tucks, dart legs; default: uniform nets)")
-    c.add_argument("--fold-pleats", action="store_true",
+    c.add_argument("--fold-pleats", action=argparse.BooleanOptionalAction, default=True,
                    help="fold tucks and knife pleats into the panels' 3D placement, so sewing starts with the "
-                        "layers in order")
+                        "layers in order (default; --no-fold-pleats leaves them flat)")
     c.add_argument("--corners", action="append", metavar="PANEL=SPEC",
                    help="corners of one panel: input vertex ids i,j,k,l or rest positions x,y;x,y;x,y;x,y "
                         "(metres, nearest boundary vertex); repeatable")

@@ -337,8 +337,9 @@ class GarmentSpec:
     panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m; the scene key
     is knot_span_mm), graded towards `seam_span` (m) at short seams when given
     (conform/grading.py), its tucks and knife pleats folded into the placement with
-    `fold_pleats` (conform/pleats.py); with `pleat_wait`, seams sewn onto a folded pleat's
-    face pull only once its tucks have nearly closed (SewingSpec.pleat_wait_gap). Seams are
+    `fold_pleats` (conform/pleats.py; on by default, a no-op without tucks); with
+    `pleat_wait` (also on), seams sewn onto a folded pleat's face or across its layers pull
+    only once its tucks have nearly closed (SewingSpec.pleat_wait_gap). Seams are
     held by springs of `seam_stiffness` N/m per metre of seam (sim/seams/energy.py).
     `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
 
@@ -350,9 +351,11 @@ class GarmentSpec:
     seam_span: float | None = key(None, doc="knot span graded towards at short seams (conform/grading.py)",
                                   unit="mm", gt=0, plausible=(0.1, 1000.0),
                                   default_text="none: knot_span_mm throughout")
-    fold_pleats: bool = key(False, doc="tucks and knife pleats start folded (conform/pleats.py)")
-    pleat_wait: bool = key(False, doc="seams sewn onto a folded pleat's face pull only once its tucks have nearly "
-                                      "closed ([sewing] pleat_wait_gap_mm, pleat_wait_end)")
+    fold_pleats: bool = key(True, doc="tucks and knife pleats start folded (conform/pleats.py); false leaves "
+                                      "them flat")
+    pleat_wait: bool = key(True, doc="seams sewn onto a folded pleat's face, or across its layers (a dart), pull "
+                                     "only once its tucks have nearly closed ([sewing] pleat_wait_gap_mm, "
+                                     "pleat_wait_end)")
     seam_stiffness: float = key(1e6, doc="seam springs, N/m per metre of seam (sim/seams/energy.py)",
                                 unit="N/m^2", gt=0)
     material: Material = key(PRESETS["cotton"], doc=_MATERIAL_OVERRIDES)

@@ -15,9 +15,10 @@ Once a matched contact-vertex pair is nearly closed it merges (sim/seams/contact
 pair that cannot merge without cloth passing through cloth is blocked, and where cloth
 lies between its sides the samples nearest to it pull with `held_fraction` of the
 stiffness (SeamContact.to_hold). A seam sewn onto a folded
-pleat's face (a waistband) pulls only once the pleat's tucks are within `pleat_wait_gap`,
-or from `pleat_wait_end` on: pulled earlier, the other panel comes down into the fold and
-its layers hold a tuck open (docs/findings.md, "Folded pleats"). A gathered seam (one side
+pleat's face (a waistband), or a dart across its layers, pulls only once the pleat's tucks
+are within `pleat_wait_gap`, or from `pleat_wait_end` on: pulled earlier, the other panel
+comes down into the fold and its layers hold a tuck open, or a layer is caught between
+the dart's legs (docs/findings.md, "Folded pleats"). A gathered seam (one side
 1.5x the other or more) waits the same way for the seams of the piece it is gathered onto
 that meet it at a corner (a sleeve gathered onto a cuff, for the cuff's side seam):
 pulled at once, the gathered cloth's corner hangs into the cuff's open slit and the side
@@ -207,6 +208,8 @@ class Sewing:
             lo, hi = tuck_uv.min(axis=0) - 1e-6, tuck_uv.max(axis=0) + 1e-6
             uv = np.asarray(s.uv_a if s.piece_a == piece else s.uv_b, float)
             on = np.all((uv >= lo) & (uv <= hi), axis=1)
+            if s.piece_a == s.piece_b == piece:
+                on[:] = True  # a dart across the pleat's layers: all of it waits
             faces.append((start[k] + np.flatnonzero(on), [slice(start[j], start[j + 1]) for j in s.after]))
         return faces
 

@@ -102,6 +102,19 @@ def test_darts_and_seams_between_parallel_sides_are_not_tucks():
     assert pleats.find_tucks("p", [dart, tube]) is None
 
 
+
+def test_a_dart_from_a_pleats_folds_waits_for_its_tucks_as_the_band_does():
+    """A seam of the panel with itself that starts on the pleat's layers (dress_knife's
+    seam43, from its two knife pleats' folds down into the bodice) waits for the tucks;
+    one clear of the pleat, and the tucks themselves, do not."""
+    dart = PanelSeam("dart", "p", "p", np.array([[B, 0.15], [B + 0.004, 0.14], [B + 0.008, 0.13]]),
+                     np.array([[C, 0.15], [C - 0.004, 0.14], [C - 0.008, 0.13]]))
+    apart = PanelSeam("apart", "p", "p", np.array([[0.24, 0.15], [0.25, 0.12]]), np.array([[0.28, 0.15], [0.26, 0.12]]))
+    fold, notes = pleats.plan_fold(Panel("p", "test", RECT), _knife() + [dart, apart], span=0.008)
+    assert notes == [] and sorted(t.seam for t in fold.tucks) == ["t1", "t2"]
+    faces = pleats.pleat_faces(fold, _knife() + [dart, apart])
+    assert {name: sorted(tucks) for name, tucks in faces.items()} == {"band": ["t1", "t2"], "dart": ["t1", "t2"]}
+
 def test_pleats_shallower_than_the_net_can_fold_stay_flat_and_say_why():
     fold, notes = pleats.plan_fold(Panel("p", "test", RECT), _knife(), span=0.02)
     assert fold is None and len(notes) == 2 and all("under 30.0 mm" in n for n in notes)
@@ -165,10 +178,9 @@ def test_dress_knife_folds_its_skirt_pleats_and_leaves_the_bodice_pleats_flat():
 def test_a_pleated_panel_conforms_to_a_folded_net_with_little_strain():
     band = polygon_panel("band", np.array([[0.0, -0.05], [0.06, -0.05], [0.06, 0.0], [0.0, 0.0]]), spacing=0.002)
     panel = polygon_panel("p", RECT, spacing=0.002)
-    options = ConformOptions(knot_span=0.04, seam_span=0.008)
+    options = ConformOptions(knot_span=0.04, seam_span=0.008, fold_pleats=False)
     flat = conform_all([panel, band], _knife((0.14, 0.20)), options)
-    folded = conform_all([panel, band], _knife((0.14, 0.20)), ConformOptions(knot_span=0.04, seam_span=0.008,
-                                                                           fold_pleats=True))
+    folded = conform_all([panel, band], _knife((0.14, 0.20)), ConformOptions(knot_span=0.04, seam_span=0.008))
     assert "pleat_folds" not in flat.quality["p"] and folded.quality["p"]["pleat_folds"] == 2
     assert "pleat_span_mm" not in folded.quality["p"]  # 20 mm deep pleats fold at 8 mm
     assert np.abs(flat.patches[0].world[..., 2]).max() < 1e-12
@@ -181,22 +193,24 @@ def test_a_pleated_panel_conforms_to_a_folded_net_with_little_strain():
 @pytest.mark.parametrize("key", ["fold_pleats", "pleat_wait"])
 def test_scene_garments_take_pleat_switches_as_booleans(key):
     source = str(ASSETS / "garments" / "dress_knife.obj")
-    scene = parse_scene({"garment": [{"source": source, key: True}]}, "dress.toml")
-    assert getattr(scene.garments[0], key)
-    assert not getattr(parse_scene({"garment": [{"source": source}]}, "dress.toml").garments[0], key)
+    scene = parse_scene({"garment": [{"source": source, key: False}]}, "dress.toml")
+    assert not getattr(scene.garments[0], key)
+    assert getattr(parse_scene({"garment": [{"source": source}]}, "dress.toml").garments[0], key)  # on by default
     with pytest.raises(InputError, match=f"dress.toml.*{key}.*true or false"):
         parse_scene({"garment": [{"source": source, key: "yes"}]}, "dress.toml")
 
 
-def test_the_bundled_dress_scene_folds_its_pleats():
+def test_the_bundled_dress_scene_folds_its_pleats_by_default():
     scene = load_scene(ASSETS / "scenes" / "dress_rumba.toml")
+    text = (ASSETS / "scenes" / "dress_rumba.toml").read_text()
+    assert "fold_pleats" not in text and "pleat_wait" not in text  # no knob: the defaults
     assert [g.fold_pleats for g in scene.garments] == [True]
     assert [g.pleat_wait for g in scene.garments] == [True]
 
 
-def test_garment_conform_folds_pleats_on_request(tmp_path):
+def test_garment_conform_folds_pleats_unless_told_not_to(tmp_path):
     source = pleated(tmp_path / "pleat.obj")
-    for flag, out in (([], "flat"), (["--fold-pleats"], "folded")):
+    for flag, out in ((["--no-fold-pleats"], "flat"), ([], "folded")):
         code = main(["conform", str(source), "-o", str(tmp_path / out), "-q", "--knot-span", "40",
                      "--seam-span", "8"] + flag)
         assert code == 0

@@ -16,10 +16,10 @@ from tests.support.intersections import assert_garment_clean
 from tests.support.panels import pleated
 
 
-def _scene(tmp_path, face, **garment):
+def _scene(tmp_path, face, dart=False, **garment):
     doc = {
-        "garment": [{"name": "g", "source": str(pleated(tmp_path / "pleat.obj", face)), "knot_span_mm": 40,
-                     "seam_span_mm": 8, "fold_pleats": True, "seam_stiffness": 1e6, **garment}],
+        "garment": [{"name": "g", "source": str(pleated(tmp_path / "pleat.obj", face, dart)), "knot_span_mm": 40,
+                     "seam_span_mm": 8, "seam_stiffness": 1e6, **garment}],
         "contact": {"dhat": 1e-3, "kappa": "adaptive", "mu": 0.0},
         "time": {"dt": 0.01, "frames": 30},
     }
@@ -47,8 +47,8 @@ def test_the_band_waits_on_the_pleat_until_its_tucks_close(tmp_path):
     """`pleat_wait`: the band's samples on the pleat's face (seam3's, not the rest of
     it) carry no force until both tucks are within SewingOptions.pleat_wait_gap; then they pull
     for good, and a checkpoint keeps that."""
-    assert all(not s.after for s in _scene(tmp_path, "last").model.seams)  # off by default
-    sim = _scene(tmp_path, "last", pleat_wait=True)
+    assert all(not s.after for s in _scene(tmp_path, "last", pleat_wait=False).model.seams)
+    sim = _scene(tmp_path, "last")  # on by default
     assert [tuple(sorted(s.after)) for s in sim.model.seams] == [(), (), (), (0, 1)]
     ((on_pleat, tucks),) = sim.model.sewing.faces
     start = sum(len(s.uv_a) for s in sim.model.seams[:3])
@@ -71,3 +71,20 @@ def test_the_band_waits_on_the_pleat_until_its_tucks_close(tmp_path):
     assert not sim.state.pleat_faces.any()
     sim.state = released
     assert sim.state.pleat_faces.all()
+
+
+def test_a_dart_across_the_pleats_layers_waits_whole_for_its_tucks(tmp_path):
+    """A seam of the skirt with itself from the pleat's tips down into it waits for the
+    tucks with every sample, not only those on the pleated edge: pulled early, the layer
+    between its legs is caught there (dress_knife's seam43, 3.3 mm open)."""
+    sim = _scene(tmp_path, "last", dart=True)
+    seams = sim.model.seams
+    assert [tuple(sorted(s.after)) for s in seams] == [(), (), (), (0, 1), (0, 1)]
+    start = np.cumsum([0] + [len(s.uv_a) for s in seams])
+    faces = sim.model.sewing.faces
+    assert len(faces) == 2
+    on_dart, tucks = faces[1]
+    np.testing.assert_array_equal(on_dart, np.arange(start[4], start[5]))  # all of it
+    assert sorted((t.start, t.stop) for t in tucks) == [(start[0], start[1]), (start[1], start[2])]
+    sim.step()
+    assert not sim.model.seam.active[on_dart].any()

@@ -120,11 +120,12 @@ def bib(path: Path, width: float, height: float, plane: float, top: float) -> Pa
 PLEAT_DX, PLEAT_DZ = 0.005, 0.02  # grid spacing along and across the pleated edge
 
 
-def pleated(path: Path, face: str = "last") -> Path:
+def pleated(path: Path, face: str = "last", dart: bool = False) -> Path:
     """skirt: 30 x 12 cm, its top edge pleated at x = 10-16 cm (roots 10 and 16, tips 12
     and 14 cm; each tuck sews 15 mm from its roots); band: 26 x 4 cm 1 cm above, sewn to
     the skirt's top edge but for the pleat's under layers: the face is its last layer
-    (14-16 cm) or its first (10-12 cm, the fold mirrored)."""
+    (14-16 cm) or its first (10-12 cm, the fold mirrored). dart: a last seam from the two
+    tips 2 cm down into the skirt, closing the middle layer below them."""
     DX, DZ = PLEAT_DX, PLEAT_DZ
 
     def sheet(width, height):
@@ -156,6 +157,8 @@ def pleated(path: Path, face: str = "last") -> Path:
     cut = 0.10 if face == "last" else 0.12  # the band takes layer 3 or layer 1
     seam([(bottom(x), top(x)) for x in np.arange(0.0, cut + 1e-9, DX)])
     seam([(bottom(x), top(x + 0.04)) for x in np.arange(cut, 0.26 + 1e-9, DX)])
+    if dart:
+        seam([(top(0.12), top(0.14)), (top(0.125) - 1, top(0.135) - 1)])
     path.write_text("\n".join(lines) + "\n")
     return path
 
