@@ -13,6 +13,12 @@ def members(patches, panels) -> dict[str, list]:
     return out
 
 
+def panel_names(patches, panels) -> tuple[dict[str, str], dict[str, list[str]]]:
+    """({patch name: its pattern panel}, {pattern panel: its patches' names, in order})."""
+    return dict(zip((p.name for p in patches), panels)), \
+        {panel: [p.name for p in ps] for panel, ps in members(patches, panels).items()}
+
+
 def merged(sets: list[set[str]]) -> list[set[str]]:
     """The sets, those that share a member joined."""
     out: list[set[str]] = []

@@ -26,7 +26,7 @@ from sim.intersect import Triangles, crossing_pairs
 from sim.seams.routes import through
 
 from ..io.arms import find_arms, raised
-from .groups import members
+from .groups import panel_names
 
 STEP = 0.004  # m, a panel's first push along its normal; each further push is one STEP longer
 MOST = 0.15  # m, a panel is never moved further than this in all
@@ -292,8 +292,7 @@ def lift_over_body(patches, seams, body_V: np.ndarray, body_F: np.ndarray, panel
     up = np.asarray(up, float)
     panels = panels or [p.name for p in patches]
     index = {p.name: p for p in patches}
-    group = dict(zip((p.name for p in patches), panels))
-    names_of = {panel: [p.name for p in ps] for panel, ps in members(patches, panels).items()}
+    group, names_of = panel_names(patches, panels)
     lifted: dict[str, float] = {}
     # Asked once for all seams: a lift changes only the seams of the panels it moves,
     # and those are not lifted again.

@@ -14,7 +14,7 @@ import numpy as np
 from sim.embedding import points_at
 from sim.intersect import crossing_pairs
 
-from .groups import hanging, members, merged
+from .groups import hanging, merged, panel_names
 from .layout import CLEARANCE, Surface, crossings
 
 
@@ -101,8 +101,7 @@ def out_of_seam_paths(patches, seams, body_V: np.ndarray, body_F: np.ndarray, pa
     if not found:
         return {}
     index = {p.name: p for p in patches}
-    names_of = {panel: [p.name for p in ps] for panel, ps in members(patches, panels).items()}
-    group_of = dict(zip((p.name for p in patches), panels))
+    group_of, names_of = panel_names(patches, panels)
     links = [(group_of[s.patch_a], group_of[s.patch_b]) for s in seams
              if s.patch_a in group_of and s.patch_b in group_of]
     seam_panels = {s.name: {group_of.get(s.patch_a), group_of.get(s.patch_b)} for s in seams}
