@@ -298,12 +298,12 @@ def _sewn_elsewhere(panel: str, seams: list[PanelSeam], origin, e, near: float) 
 
 
 def _sewn_by_seam(panel: str, seams: list[PanelSeam], origin, e, near: float,
-                  same_panel: set | None = None) -> dict[str, np.ndarray]:
+                  tucks: set | None = None) -> dict[str, np.ndarray]:
     """_sewn_elsewhere's points by the seam that sews them (seams with none left out);
-    with same_panel (tuck names), the panel's seams with itself other than those too."""
+    given the names of its tucks, the panel's other seams with itself too (darts)."""
     out: dict[str, list[np.ndarray]] = {}
     for s in seams:
-        if s.panel_a == s.panel_b and (same_panel is None or s.name in same_panel):
+        if s.panel_a == s.panel_b and (tucks is None or s.name in tucks):
             continue
         for name, p in ((s.panel_a, s.points_a), (s.panel_b, s.points_b)):
             if name == panel and len(p):
@@ -322,9 +322,8 @@ def pleat_faces(fold: PleatFold, seams: list[PanelSeam]) -> dict[str, tuple[str,
     over the folded layers instead of round one of them (dress_knife's seam43: pulled
     from the start, panel13's innermost layer came between its legs and held it 3.3 mm
     open)."""
-    tucks_of = {t.seam for t in fold.tucks}
     sewn = _sewn_by_seam(fold.panel, seams, fold.origin, fold.direction, max(_depth(t) for t in fold.tucks),
-                         same_panel=tucks_of)
+                         tucks={t.seam for t in fold.tucks})
     faces: dict[str, tuple[str, ...]] = {}
     for g0, g1 in fold.groups:
         group = [t for t in fold.tucks if g0 <= t.roots[0] and t.roots[1] <= g1]
