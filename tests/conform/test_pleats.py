@@ -102,7 +102,6 @@ def test_darts_and_seams_between_parallel_sides_are_not_tucks():
     assert pleats.find_tucks("p", [dart, tube]) is None
 
 
-
 def test_a_dart_from_a_pleats_folds_waits_for_its_tucks_as_the_band_does():
     """A seam of the panel with itself that starts on the pleat's layers (dress_knife's
     seam43, from its two knife pleats' folds down into the bodice) waits for the tucks;
@@ -114,6 +113,7 @@ def test_a_dart_from_a_pleats_folds_waits_for_its_tucks_as_the_band_does():
     assert notes == [] and sorted(t.seam for t in fold.tucks) == ["t1", "t2"]
     faces = pleats.pleat_faces(fold, _knife() + [dart, apart])
     assert {name: sorted(tucks) for name, tucks in faces.items()} == {"band": ["t1", "t2"], "dart": ["t1", "t2"]}
+
 
 def test_pleats_shallower_than_the_net_can_fold_stay_flat_and_say_why():
     fold, notes = pleats.plan_fold(Panel("p", "test", RECT), _knife(), span=0.02)
