@@ -196,20 +196,21 @@ class Sewing:
 
     def _pleat_faces(self) -> list[tuple[np.ndarray, list[slice]]]:
         """Per seam that waits for a pleat: its samples on the pleat (within the tucks'
-        span of parameters on that piece; a seam may run on past the pleat) and the
-        tucks' sample ranges."""
+        span of parameters on that piece; a seam may run on past the pleat; a dart of
+        the pleated piece itself, all of them) and the tucks' sample ranges."""
         start, seams = self.start, self.seams
         faces = []
         for k, s in enumerate(seams):
             if not s.after:
                 continue
             piece = seams[s.after[0]].piece_a
-            tuck_uv = np.concatenate([np.r_[seams[j].uv_a, seams[j].uv_b] for j in s.after])
-            lo, hi = tuck_uv.min(axis=0) - 1e-6, tuck_uv.max(axis=0) + 1e-6
-            uv = np.asarray(s.uv_a if s.piece_a == piece else s.uv_b, float)
-            on = np.all((uv >= lo) & (uv <= hi), axis=1)
-            if s.piece_a == s.piece_b == piece:
-                on[:] = True  # a dart across the pleat's layers: all of it waits
+            if s.piece_a == s.piece_b == piece:  # a dart across the pleat's layers: all of it waits
+                on = np.ones(len(s.uv_a), bool)
+            else:
+                tuck_uv = np.concatenate([np.r_[seams[j].uv_a, seams[j].uv_b] for j in s.after])
+                lo, hi = tuck_uv.min(axis=0) - 1e-6, tuck_uv.max(axis=0) + 1e-6
+                uv = np.asarray(s.uv_a if s.piece_a == piece else s.uv_b, float)
+                on = np.all((uv >= lo) & (uv <= hi), axis=1)
             faces.append((start[k] + np.flatnonzero(on), [slice(start[j], start[j + 1]) for j in s.after]))
         return faces
 
