@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from sksparse.cholmod import CholmodNotPositiveDefiniteError, analyze
 
-from . import supernodal
+from . import pardiso, supernodal
 
 # CHOLMOD's supernodal factorization spends its time in dense BLAS on the fronts. BLAS
 # runs on one thread by default (sim/threads.py: numba's kernels and BLAS would compete
@@ -96,6 +96,9 @@ class _ScikitFactor:
 
 
 def _factor(A_lower: sp.csc_matrix, ordering: str):
+    if pardiso.available():
+        rows = A_lower.shape[0]
+        return pardiso.PardisoFactor(A_lower, ordering, LARGE_THREADS if rows >= PARALLEL_ROWS else 1)
     make = supernodal.RelaxedFactor if supernodal.available() else _ScikitFactor
     return make(A_lower, ordering)
 

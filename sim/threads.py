@@ -18,6 +18,9 @@ import sys
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# numba takes TBB before OpenMP where both are installed (MKL's wheel brings TBB); its
+# kernels were measured on OpenMP, whose pool MKL's PARDISO shares (sim/pardiso.py).
+os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
 
 # Thread-count setters of the OpenBLAS builds we meet: numpy's wheels (scipy-openblas,
 # 64-bit integers) and Debian's libopenblas (CHOLMOD's).
