@@ -108,6 +108,22 @@ def test_bundled_hanging_sheet_is_seeded_and_factorizations_are_counted():
     assert sum(s.factorizations for s in stats) >= sum(s.newton_iterations for s in stats)
 
 
+def test_the_cloth_benchmark_reports_the_sheets_shape():
+    # The shape the paper's code is compared with: the seed's mean offset ((2/pi)^2 of
+    # 1 mm over the sheet, a little less at the control points, which include the edges)
+    # and the flat sheet's centroid height (0.5 m) before anything moves.
+    from garment.bench import cloth
+    from garment.bench.common import scene as bundled
+
+    sc = bundled("hanging", (40, 40))
+    got = cloth.shape(build_simulator(sc), sc)
+    assert 0.85 < got["out_of_plane_mm"] / (4.0 / np.pi**2) < 1.0
+    assert abs(got["centroid_height_mm"] - 500.0) < 1e-6
+    case = cloth.runner("hanging")([8], steps=2)[0]
+    assert case["centroid_height_mm"] < 500.0  # it falls
+    assert set(cloth.COLUMNS) <= set(case)
+
+
 def test_the_kept_seed777_designs_read_as_a_corpus(monkeypatch):
     """assets/garments/garmentcode_seed777 (the unseen rate's 25 designs) runs through
     `garment bench corpus` with GARMENT_CORPUS: every pattern reads with the panels and
