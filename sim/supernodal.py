@@ -121,7 +121,9 @@ def available() -> bool:
 
 
 _ORDERINGS = {"natural": 0, "amd": 2, "metis": 3, "nesdis": 4}
-_LOCK = threading.Lock()  # one cholmod_common for the process; ctypes drops the GIL
+_LOCK = threading.RLock()  # one cholmod_common for the process; ctypes drops the GIL
+# Re-entrant: the garbage collector may free another factor (`__del__`) from inside a
+# locked section, on the same thread (a plain lock deadlocked so in PARDISO's binding).
 
 
 class RelaxedFactor:

@@ -165,3 +165,24 @@ def test_a_matrix_of_another_pattern_is_analysed_as_its_own(nonzeros):
     dense = (short + short.T - sp.diags(short.diagonal())).toarray()
     assert np.allclose(solver.solve(b), np.linalg.solve(dense, b), rtol=1e-10, atol=1e-12)
     assert solver.n_analyses == 2
+
+
+def test_a_factor_freed_by_the_collector_inside_a_locked_call_does_not_deadlock():
+    # The garbage collector runs __del__ wherever Python allocates, including between
+    # the C calls of a locked section: freeing a factor there must not wait for itself.
+    import gc
+    import threading
+
+    f = supernodal.RelaxedFactor(lower(grid_laplacian(10)))
+    cycle = [f]
+    cycle.append(cycle)
+    del f, cycle
+    done = threading.Event()
+
+    def locked_collect():
+        with supernodal._LOCK:
+            gc.collect()
+        done.set()
+
+    threading.Thread(target=locked_collect, daemon=True).start()
+    assert done.wait(10.0)
