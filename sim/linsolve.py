@@ -65,10 +65,15 @@ def _keep_large_blocks_on_heap() -> None:
 _keep_large_blocks_on_heap()
 
 
+def factor_threads(rows: int) -> int:
+    """Threads for a factorization of `rows` rows: LARGE_THREADS where that many pay."""
+    return LARGE_THREADS if rows >= PARALLEL_ROWS else 1
+
+
 @contextmanager
 def blas_threads(rows: int):
-    """LARGE_THREADS BLAS threads for a factorization of `rows` rows, if that many pay."""
-    if _OPENBLAS is None or rows < PARALLEL_ROWS or LARGE_THREADS <= 1:
+    """factor_threads(rows) OpenBLAS threads for a CHOLMOD factorization."""
+    if _OPENBLAS is None or factor_threads(rows) <= 1:
         yield
         return
     before = _OPENBLAS.openblas_get_num_threads()
@@ -99,8 +104,7 @@ class _ScikitFactor:
 
 def _factor(A_lower: sp.csc_matrix, ordering: str):
     if pardiso.available():
-        rows = A_lower.shape[0]
-        return pardiso.PardisoFactor(A_lower, ordering, LARGE_THREADS if rows >= PARALLEL_ROWS else 1)
+        return pardiso.PardisoFactor(A_lower, ordering, factor_threads(A_lower.shape[0]))
     make = supernodal.RelaxedFactor if supernodal.available() else _ScikitFactor
     return make(A_lower, ordering)
 

@@ -69,6 +69,14 @@ def _ptr(a: np.ndarray) -> ctypes.c_void_p:
     return a.ctypes.data_as(ctypes.c_void_p)
 
 
+def _sorted(A: sp.csc_matrix) -> sp.csc_matrix:
+    """A with its row indices sorted within each column, as PARDISO reads them."""
+    return A if A.has_sorted_indices else A.sorted_indices()
+
+
+_NO_VECTOR = np.zeros(1)  # b and x of the phases that solve nothing
+
+
 class PardisoFactor:
     """A Cholesky factor of one lower-triangular CSC pattern: analysed once, refactored
     in place (`factorize`) for every matrix of that pattern.
@@ -77,7 +85,7 @@ class PardisoFactor:
     is; it needs every diagonal entry stored, first in its row."""
 
     def __init__(self, A_lower: sp.csc_matrix, ordering: str = "default", threads: int = 1):
-        A = A_lower if A_lower.has_sorted_indices else A_lower.sorted_indices()
+        A = _sorted(A_lower)
         n = A.shape[0]
         self._ia = (A.indptr + 1).astype(np.int32)  # one-based: PARDISO's default
         self._ja = (A.indices + 1).astype(np.int32)
@@ -92,22 +100,16 @@ class PardisoFactor:
         self._iparm[0] = 1  # not the defaults: the values below
         self._iparm[1] = _ORDERINGS.get(ordering, 0)
         self._iparm[9] = 8  # pivot perturbation 1e-8 (indefinite matrices only)
-        self._iparm[17] = -1  # report the values stored in L
         self._perm = np.zeros(n, dtype=np.int32)
         self._live = False
         if n == 0:  # nothing free to solve for (every point pinned)
             return
-        error = self._call(_ANALYSE, self._a, np.zeros(1), np.zeros(1), 1)
+        error = self._call(_ANALYSE)
         if error != 0:
             raise MemoryError(f"PARDISO could not analyse a {n}-row matrix (error {error})")
         self._live = True
 
-    @property
-    def stored(self) -> int:
-        """Values stored in L."""
-        return int(self._iparm[17])
-
-    def _call(self, phase: int, a: np.ndarray, b: np.ndarray, x: np.ndarray, nrhs: int) -> int:
+    def _call(self, phase: int, b: np.ndarray = _NO_VECTOR, x: np.ndarray = _NO_VECTOR, nrhs: int = 1) -> int:
         i32 = lambda v: ctypes.byref(ctypes.c_int32(v))
         error = ctypes.c_int32(0)
         # No lock: each factor has its own handle (a global one deadlocked when the
@@ -115,7 +117,7 @@ class PardisoFactor:
         before = _LIB.MKL_Set_Num_Threads_Local(ctypes.c_int(self._threads))
         try:
             _LIB.pardiso(_ptr(self._pt), i32(1), i32(1), i32(_SPD), i32(phase), i32(self._n),
-                         _ptr(a), _ptr(self._ia), _ptr(self._ja), _ptr(self._perm), i32(nrhs),
+                         _ptr(self._a), _ptr(self._ia), _ptr(self._ja), _ptr(self._perm), i32(nrhs),
                          _ptr(self._iparm), i32(0), _ptr(b), _ptr(x), ctypes.byref(error))
         finally:
             _LIB.MKL_Set_Num_Threads_Local(ctypes.c_int(before))
@@ -126,11 +128,10 @@ class PardisoFactor:
         definite."""
         if self._n == 0:
             return True
-        A = A_lower if A_lower.has_sorted_indices else A_lower.sorted_indices()
-        self._a[:] = A.data
+        self._a[:] = _sorted(A_lower).data
         if shift:
             self._a[self._diagonal] += shift
-        error = self._call(_FACTOR, self._a, np.zeros(1), np.zeros(1), 1)
+        error = self._call(_FACTOR)
         if error == _NOT_POSITIVE:
             return False
         if error != 0:
@@ -143,12 +144,12 @@ class PardisoFactor:
         if self._n == 0:
             return x
         nrhs = 1 if b.ndim == 1 else b.shape[1]
-        error = self._call(_SOLVE, self._a, b, x, nrhs)
+        error = self._call(_SOLVE, b, x, nrhs)
         if error != 0:
             raise RuntimeError(f"PARDISO could not solve (error {error})")
         return x
 
     def __del__(self):
         if getattr(self, "_live", False) and _LIB is not None:
-            self._call(_RELEASE, self._a, np.zeros(1), np.zeros(1), 1)
+            self._call(_RELEASE)
             self._live = False

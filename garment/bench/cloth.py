@@ -17,7 +17,8 @@ from .common import scene, step_summary
 
 COLUMNS = ("resolution", "dofs", "steps", "seconds_per_step", "newton_iterations_per_step",
            "factorizations_per_step", "pcg_iterations_per_step", "seconds_per_iteration", "assembly_fraction",
-           "factorization_fraction", "solve_fraction", "ccd_fraction", "line_search_fraction", "out_of_plane_mm", "centroid_height_mm", "build_seconds")
+           "factorization_fraction", "solve_fraction", "ccd_fraction", "line_search_fraction",
+           "out_of_plane_mm", "centroid_height_mm", "build_seconds")
 
 DEFAULT_STEPS = 20
 

@@ -71,8 +71,8 @@ def test_not_positive_definite_is_reported_and_a_shift_factors(margin):
     f = pardiso.PardisoFactor(lower(A), "default", 2)
     assert not f.factorize(lower(A))
     assert f.factorize(lower(A), shift=2.0 * margin * lam)
-    assert pardiso.PardisoFactor(lower(grid_laplacian(m, shift=-lam * (1.0 - margin)))).factorize(
-        lower(grid_laplacian(m, shift=-lam * (1.0 - margin))))
+    just_positive = lower(grid_laplacian(m, shift=-lam * (1.0 - margin)))
+    assert pardiso.PardisoFactor(just_positive).factorize(just_positive)
     b = np.arange(A.shape[0], dtype=float)
     x = f.solve(b)
     shifted = A + 2.0 * margin * lam * sp.identity(A.shape[0])
