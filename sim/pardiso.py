@@ -75,6 +75,7 @@ def _sorted(A: sp.csc_matrix) -> sp.csc_matrix:
 
 
 _NO_VECTOR = np.zeros(1)  # b and x of the phases that solve nothing
+_NO_VECTOR_PTR = _ptr(_NO_VECTOR)
 
 
 class PardisoFactor:
@@ -101,6 +102,9 @@ class PardisoFactor:
         self._iparm[1] = _ORDERINGS.get(ordering, 0)
         self._iparm[9] = 8  # pivot perturbation 1e-8 (indefinite matrices only)
         self._perm = np.zeros(n, dtype=np.int32)
+        # Pointers taken once: the arrays are only ever written in place, and at
+        # interpreter exit (a factor freed by __del__) numpy's .ctypes can no longer import.
+        self._ptrs = tuple(_ptr(a) for a in (self._pt, self._a, self._ia, self._ja, self._perm, self._iparm))
         self._live = False
         if n == 0:  # nothing free to solve for (every point pinned)
             return
@@ -109,16 +113,18 @@ class PardisoFactor:
             raise MemoryError(f"PARDISO could not analyse a {n}-row matrix (error {error})")
         self._live = True
 
-    def _call(self, phase: int, b: np.ndarray = _NO_VECTOR, x: np.ndarray = _NO_VECTOR, nrhs: int = 1) -> int:
+    def _call(self, phase: int, b: np.ndarray | None = None, x: np.ndarray | None = None, nrhs: int = 1) -> int:
         i32 = lambda v: ctypes.byref(ctypes.c_int32(v))
         error = ctypes.c_int32(0)
+        pt, a, ia, ja, perm, iparm = self._ptrs
+        b_ptr = _NO_VECTOR_PTR if b is None else _ptr(b)
+        x_ptr = _NO_VECTOR_PTR if x is None else _ptr(x)
         # No lock: each factor has its own handle (a global one deadlocked when the
         # garbage collector freed another factor inside a call).
         before = _LIB.MKL_Set_Num_Threads_Local(ctypes.c_int(self._threads))
         try:
-            _LIB.pardiso(_ptr(self._pt), i32(1), i32(1), i32(_SPD), i32(phase), i32(self._n),
-                         _ptr(self._a), _ptr(self._ia), _ptr(self._ja), _ptr(self._perm), i32(nrhs),
-                         _ptr(self._iparm), i32(0), _ptr(b), _ptr(x), ctypes.byref(error))
+            _LIB.pardiso(pt, i32(1), i32(1), i32(_SPD), i32(phase), i32(self._n), a, ia, ja, perm,
+                         i32(nrhs), iparm, i32(0), b_ptr, x_ptr, ctypes.byref(error))
         finally:
             _LIB.MKL_Set_Num_Threads_Local(ctypes.c_int(before))
         return error.value
