@@ -27,7 +27,7 @@ from conform.knot_insertion import refine_net, refine_patchset
 from garment.build import build_simulator
 from garment.io.garments import load_garment
 from garment.io.patchfile import save_patchset
-from garment.scene import load_scene
+from garment.dress.scene_file import scene_for_run
 from sim.materials import PRESETS
 from sim.recovery import step_with_recovery
 from sim.simulator import Simulator
@@ -70,20 +70,24 @@ SETTLE = 0.1
 COARSE_SEAMS = "band"
 
 
-def case_scene(case: str, span_m: float, quadrature: str | None = None):
-    """The scene of `case` with every garment at knot span `span_m`, uniform."""
+def case_scene(case: str, span_m: float, quadrature: str | None = None, folder: Path | None = None):
+    """The scene of `case` with every garment at knot span `span_m`, uniform, as
+    `garment simulate` runs it (a scene that leaves the garment's start to the toolkit is
+    dressed, its placed garment written to `folder`, a new temporary one by default)."""
     if case not in CASES:
         raise SystemExit(f"garment bench garment: --case must be one of {', '.join(CASES)}, not {case!r}")
     scene_name, contact, preset, time_changes = CASES[case]
-    sc = load_scene(SCENES / f"{scene_name}.toml")
+    # Uniform nets: the resolution is the knot span everywhere (the scene's seam_span_mm
+    # grading would put 2 mm spans at the tucks after a refinement from 32 mm).
+    uniform = {"knot_span_mm": round(span_m * 1e3, 9), "seam_span_mm": None}
+    sc = scene_for_run(SCENES / f"{scene_name}.toml", folder or Path(tempfile.mkdtemp(prefix="garment-bench-")),
+                       uniform)
     garments = []
     for g in sc.garments:
         material = PRESETS[preset] if preset is not None else g.material
         if quadrature is not None:
             material = dataclasses.replace(material, quadrature=quadrature)
-        # Uniform nets: the resolution is the knot span everywhere (the scene's seam_span_mm
-        # grading would put 2 mm spans at the tucks after a refinement from 32 mm).
-        garments.append(dataclasses.replace(g, material=material, knot_span=span_m, seam_span=None))
+        garments.append(dataclasses.replace(g, material=material))
     return dataclasses.replace(sc, garments=garments, contact=dataclasses.replace(sc.contact, **contact),
                                time=dataclasses.replace(sc.time, **time_changes))
 
@@ -93,48 +97,49 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
     levels = int(refine)
     cases = []
     for span_mm in resolutions:
-        sc = case_scene(case, span_mm * 2 ** levels / 1000.0, quadrature)
-        coarse = dataclasses.replace(sc, contact=dataclasses.replace(sc.contact, seams=COARSE_SEAMS)) if levels else sc
-        start = time.perf_counter()
-        sim = build_simulator(coarse)
-        build = time.perf_counter() - start
-        preroll = round(sc.time.preroll / sc.time.dt)
-        fine = min(round(SETTLE / sc.time.dt), preroll) if levels else 0
+        with tempfile.TemporaryDirectory() as placed:  # a dressed scene's placed garment
+            sc = case_scene(case, span_mm * 2 ** levels / 1000.0, quadrature, Path(placed))
+            coarse = sc if not levels else dataclasses.replace(
+                sc, contact=dataclasses.replace(sc.contact, seams=COARSE_SEAMS))
+            start = time.perf_counter()
+            sim = build_simulator(coarse)
+            build = time.perf_counter() - start
+            preroll = round(sc.time.preroll / sc.time.dt)
+            fine = min(round(SETTLE / sc.time.dt), preroll) if levels else 0
 
-        def advance(sim, n, into):
-            # As a run takes its steps: a step that fails is taken again (split or with a
-            # wider contact region); its (sub)steps all count.
-            for _ in range(n):
-                into.extend(step_with_recovery(sim, on_warning=lambda message: None))
-                if progress is not None:
-                    progress(span_mm, into[-1])
+            def advance(sim, n, into):
+                # As a run takes its steps: a step that fails is taken again (split or with a
+                # wider contact region); its (sub)steps all count.
+                for _ in range(n):
+                    into.extend(step_with_recovery(sim, on_warning=lambda message: None))
+                    if progress is not None:
+                        progress(span_mm, into[-1])
 
-        sew, settle, dance = [], [], []
-        advance(sim, preroll - fine, sew)
-        sew_dofs = sim.n_dofs
-        with tempfile.TemporaryDirectory() as tmp:
+            sew, settle, dance = [], [], []
+            advance(sim, preroll - fine, sew)
+            sew_dofs = sim.n_dofs
             if levels:
                 start = time.perf_counter()
-                sim = _refined(sim, sc, levels, Path(tmp))
+                sim = _refined(sim, sc, levels, Path(placed))
                 build += time.perf_counter() - start
             advance(sim, fine, settle)
             advance(sim, steps or DEFAULT_STEPS, dance)
-        settled = step_summary(settle)
-        cases.append({
-            "resolution": span_mm, "garment": case, "knot_span_mm": span_mm, "dofs": sim.n_dofs,
-            "contact_vertices": sim.model.barrier.contact.n_cloth if sim.model.barrier is not None else 0,
-            "sewn_at_span_mm": span_mm * 2 ** levels, "sewn_at_dofs": sew_dofs, "build_seconds": build,
-            "sew_steps": len(sew), "sew_seconds_per_step": step_summary(sew)["seconds_per_step"],
-            "settle_steps": len(settle), "settle_seconds_per_step": settled["seconds_per_step"],
-            "settle_newton_iterations_per_step": settled["newton_iterations_per_step"],
-            **step_summary(dance),
-            "seam_gap_max_mm": 1e3 * max(s.extra.get("seam_gap_max", 0.0) for s in dance),
-            "seams_above_1mm_at_end": sum(g > 1e-3 for g in sim.seam_gaps().values()),
-            "seam_pairs_held_open_at_end": sim.seam_pairs_held_open(),
-            # Per step: contact-rich steps vary several-fold, so averages hide where time goes.
-            "settle_iterations": [s.newton_iterations for s in settle],
-            "step_iterations": [s.newton_iterations for s in dance],
-        })
+            settled = step_summary(settle)
+            cases.append({
+                "resolution": span_mm, "garment": case, "knot_span_mm": span_mm, "dofs": sim.n_dofs,
+                "contact_vertices": sim.model.barrier.contact.n_cloth if sim.model.barrier is not None else 0,
+                "sewn_at_span_mm": span_mm * 2 ** levels, "sewn_at_dofs": sew_dofs, "build_seconds": build,
+                "sew_steps": len(sew), "sew_seconds_per_step": step_summary(sew)["seconds_per_step"],
+                "settle_steps": len(settle), "settle_seconds_per_step": settled["seconds_per_step"],
+                "settle_newton_iterations_per_step": settled["newton_iterations_per_step"],
+                **step_summary(dance),
+                "seam_gap_max_mm": 1e3 * max(s.extra.get("seam_gap_max", 0.0) for s in dance),
+                "seams_above_1mm_at_end": sum(g > 1e-3 for g in sim.seam_gaps().values()),
+                "seam_pairs_held_open_at_end": sim.seam_pairs_held_open(),
+                # Per step: contact-rich steps vary several-fold, so averages hide where time goes.
+                "settle_iterations": [s.newton_iterations for s in settle],
+                "step_iterations": [s.newton_iterations for s in dance],
+            })
     return cases
 
 

@@ -88,6 +88,21 @@ def body_frame(obstacle: dict, body: Path):
     return frame, to_scene_frame(V.astype(float), frame.scale, frame.up), F.astype(np.int32)
 
 
+def scene_for_run(path: Path, folder: Path, garment_changes: dict | None = None):
+    """The scene file at `path` as `garment simulate` runs it: a scene that leaves the
+    garment's start to the toolkit (leaves_placement) is dressed, its placed garment
+    written to `folder`; any other is read as written. garment_changes: keys set in its
+    [[garment]] tables first (None removes one; a benchmark's knot_span_mm)."""
+    from ..scene.read import parse_scene, read_scene_data
+
+    data = read_scene_data(Path(path))
+    if garment_changes:
+        data = {**data, "garment": [{k: v for k, v in {**g, **garment_changes}.items() if v is not None}
+                                    for g in data.get("garment", [])]}
+    scene = parse_scene(data, Path(path))
+    return dressed_scene(data, scene, folder) if leaves_placement(data) else scene
+
+
 def dressed_scene(data: dict, scene, folder: Path):
     """The scene that dresses the body of a placement-free scene (`scene`, as read from
     its TOML `data`) in its garment: the garment conformed and placed by

@@ -73,9 +73,10 @@ def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
     monkeypatch.setattr(bench, "case_scene", short_preroll)
     monkeypatch.setattr(bench, "SETTLE", 0.02)
     (case,) = bench.run((20,), steps=1, refine=1)
-    assert (case["sew_steps"], case["settle_steps"], case["steps"]) == (1, 2, 1)
+    # Two settling steps at the fine span (a step split in two by recovery counts twice).
+    assert (case["sew_steps"], case["steps"]) == (1, 1) and case["settle_steps"] in (2, 3, 4)
     assert case["sewn_at_dofs"] < case["dofs"] and case["sewn_at_span_mm"] == 40
-    assert case["settle_seconds_per_step"] > 0.0 and len(case["settle_iterations"]) == 2
+    assert case["settle_seconds_per_step"] > 0.0 and len(case["settle_iterations"]) == case["settle_steps"]
     assert case["settle_newton_iterations_per_step"] == np.mean(case["settle_iterations"]) >= 1
 
 

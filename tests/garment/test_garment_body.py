@@ -1,7 +1,7 @@
 """A garment sewn onto a moving character, checked frame by frame with the independent
 brute-force intersection test (tests/support/intersections.py): the bundled poncho
-(assets/scenes/poncho_rumba.toml) closes its 26 cm open shoulder seams during the pre-roll
-and rides the first frames of the Rumba dance."""
+(assets/scenes/poncho_rumba.toml), placed and sewn as `garment dress` does it, closes its
+shoulder seams during the pre-roll and rides the first frames of the Rumba dance."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import dataclasses
 
 import pytest
 
-from garment.scene import load_scene
+from garment.dress.scene_file import scene_for_run
 from garment.build import build_simulator
 
 from tests.support.intersections import assert_garment_clean
@@ -19,9 +19,10 @@ SCENE = SCENES / "poncho_rumba.toml"
 
 
 @pytest.mark.slow
-def test_poncho_sews_onto_the_dancing_body_without_intersections():
-    scene = load_scene(SCENE)
-    frames = 12  # 0.3 s pre-roll + 0.18 s of the dance
+def test_poncho_sews_onto_the_dancing_body_without_intersections(tmp_path):
+    scene = scene_for_run(SCENE, tmp_path)
+    frames = 20  # the 0.6 s pre-roll + 0.2 s of the dance
+    assert scene.time.preroll == pytest.approx(0.6)
     sim = build_simulator(dataclasses.replace(scene, time=dataclasses.replace(scene.time, frames=frames)))
     body = sim.model.obstacles[0]
     gaps = []

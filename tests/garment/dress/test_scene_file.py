@@ -3,10 +3,14 @@ is dressed as `garment dress` dresses (garment/dress/scene_file.py): end to end 
 `garment simulate` on the small tube skirt and cylinder body of test_dress.py, checked
 by the independent crossing test on every exported frame."""
 
+import json
+
+import numpy as np
 import pytest
 
 from garment.cli import main
-from garment.dress.scene_file import dress_settings, leaves_placement
+from garment.dress.job import DressOptions
+from garment.dress.scene_file import dress_settings, leaves_placement, scene_for_run
 from garment.scene.read import read_scene_data
 from sim.errors import InputError
 from tests.support.check_frames import check_frame, frames
@@ -114,3 +118,24 @@ def test_a_placement_free_scene_on_an_animated_body_sews_on_its_first_pose_then_
 
     assert body_x(15) == pytest.approx(body_x(0), abs=1e-9)  # held through the pre-roll (0.6 s)
     assert body_x(18) - body_x(0) == pytest.approx(0.02, abs=1e-6)  # then the whole motion
+
+
+def test_scene_for_run_dresses_a_placement_free_scene_and_takes_others_as_written(tmp_path):
+    # What `garment simulate` runs, for the benchmarks and tests that build a scene file's
+    # simulation themselves: the tube skirt placed (its patches written beside), the
+    # garment keys given changed first; a scene that places its garment is only read.
+    path = write_scene(tmp_path, SCENE.format(frames=4))
+    points = {}
+    for span in (40, 80):
+        placed = tmp_path / f"placed{span}"
+        scene = scene_for_run(path, placed, {"knot_span_mm": span})
+        (garment,) = scene.garments
+        assert garment.source == (placed / "patches.json").resolve() and garment.source.is_file()
+        assert scene.time.preroll == pytest.approx(DressOptions().sew_time)
+        points[span] = sum(np.prod(p["control_points"]) for p in json.loads(garment.source.read_text())["patches"])
+    assert points[80] < points[40]  # conformed at the span given
+    manual = tmp_path / "manual.toml"
+    manual.write_text(SCENE.format(frames=4).replace("[time]", "[time]\npreroll = 0.3"))
+    scene = scene_for_run(manual, tmp_path / "unused", {"knot_span_mm": 50, "seam_span_mm": None})
+    assert scene.garments[0].knot_span == pytest.approx(0.05) and scene.garments[0].seam_span is None
+    assert not (tmp_path / "unused").exists()
