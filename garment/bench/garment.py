@@ -73,15 +73,15 @@ COARSE_SEAMS = "band"
 def case_scene(case: str, span_m: float, quadrature: str | None = None, folder: Path | None = None):
     """The scene of `case` with every garment at knot span `span_m`, uniform, as
     `garment simulate` runs it (a scene that leaves the garment's start to the toolkit is
-    dressed, its placed garment written to `folder`, a new temporary one by default)."""
+    dressed, its placed garment written to `folder`, by default one in the temporary folder)."""
     if case not in CASES:
         raise SystemExit(f"garment bench garment: --case must be one of {', '.join(CASES)}, not {case!r}")
     scene_name, contact, preset, time_changes = CASES[case]
     # Uniform nets: the resolution is the knot span everywhere (the scene's seam_span_mm
     # grading would put 2 mm spans at the tucks after a refinement from 32 mm).
     uniform = {"knot_span_mm": round(span_m * 1e3, 9), "seam_span_mm": None}
-    sc = scene_for_run(SCENES / f"{scene_name}.toml", folder or Path(tempfile.mkdtemp(prefix="garment-bench-")),
-                       uniform)
+    folder = folder or Path(tempfile.gettempdir()) / "garment-bench" / scene_name  # made only if dressed
+    sc = scene_for_run(SCENES / f"{scene_name}.toml", folder, uniform)
     garments = []
     for g in sc.garments:
         material = PRESETS[preset] if preset is not None else g.material
