@@ -29,7 +29,8 @@ from garment.io.garments import load_garment
 from garment.io.patchfile import save_patchset
 from garment.dress.scene_file import scene_for_run
 from sim.materials import PRESETS
-from sim.recovery import step_with_recovery
+from sim.errors import SimulationError
+from sim.recovery import StepFailure, step_with_recovery
 from sim.simulator import Simulator
 
 from .common import SCENES, step_summary
@@ -111,7 +112,11 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
                 # As a run takes its steps: a step that fails is taken again (split or with a
                 # wider contact region); its (sub)steps all count.
                 for _ in range(n):
-                    into.extend(step_with_recovery(sim, on_warning=lambda message: None))
+                    try:
+                        into.extend(step_with_recovery(sim, on_warning=lambda message: None))
+                    except StepFailure as e:  # reported as `garment simulate` reports it
+                        raise SimulationError(f"garment bench garment --case {case}, {span_mm} mm "
+                                              f"({sim.n_dofs} DOFs): {e}") from None
                     if progress is not None:
                         progress(span_mm, into[-1])
 

@@ -14,7 +14,9 @@ from garment.bench import garment as bench
 from garment.bench.conform_garments import panel_seconds
 from garment.bench.garment import SCENES, case_scene
 from garment.build import build_simulator
+from garment.cli import main
 from garment.scene import load_scene
+from sim.recovery import StepFailure
 
 
 def test_navier_coefficient():
@@ -144,3 +146,16 @@ def test_the_kept_seed777_designs_read_as_a_corpus(monkeypatch):
         if not row["body"].is_file():
             pytest.skip(f"no shared bodies here ({row['body']})")
         assert row["body"].stem == ("mean_all_apart" if row["type"] in ("pants", "jumpsuit") else "mean_all")
+
+
+def test_a_failed_step_in_bench_garment_is_an_error_not_a_traceback(monkeypatch, capsys):
+    # The dress refined to 61K DOFs can fail its hand-over (Newton at its cap down to the
+    # split floor): the benchmark says so in one line and exits 3, as `garment simulate`.
+    def fail(sim, **kwargs):
+        raise StepFailure(0.5, "Newton hit its iteration cap (100)")
+
+    monkeypatch.setattr(bench, "step_with_recovery", fail)
+    assert main(["bench", "garment", "--resolution", "80", "--steps", "1", "--json"]) == 3
+    err = capsys.readouterr().err
+    assert "error: garment bench garment --case poncho, 80 mm" in err and "t = 0.5 s" in err
+    assert "Traceback" not in err
