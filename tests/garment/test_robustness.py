@@ -218,6 +218,26 @@ def test_quasistatic_sewing_steps_are_kept_unconverged_other_steps_are_split():
     assert len(messages) == 4  # halves, quarters, ... down to the floor (dt / 16)
 
 
+def test_a_failed_step_names_how_far_newton_was_and_blames_a_body_only_when_it_lags():
+    """A capped solve says how far its last step was from the tolerance. A body a hair
+    short of its pose (the drive's floor, 1e-9 m) is at its pose: the cause lies
+    elsewhere. A body held back a centimetre is the cause."""
+    from sim.recovery import diagnose, failure
+    from sim.stats import StepStats
+
+    sim = build_simulator(loads_scene(CONTACT))
+    st = StepStats(step=1, time=0.01)
+    st.converged, st.residual, st.newton_iterations = False, 0.043, sim.model.newton.max_iterations
+    st.energy = 0.0
+    problem = failure(sim, st)
+    assert "iteration cap (100; last step 0.043 m/s, tolerance 0.01)" in problem
+    st.extra.update(body_lag=6.9e-10, min_distance=1e-4)
+    assert "could not reach its pose" not in diagnose(sim, st, problem, 0.000625)
+    assert "too large for this motion" in diagnose(sim, st, problem, 0.000625)
+    st.extra["body_lag"] = 0.01
+    assert "could not reach its pose (it lags 0.01 m behind)" in diagnose(sim, st, problem, 0.000625)
+
+
 def test_failure_at_the_floor_names_frame_and_cause_and_keeps_a_checkpoint(tmp_path):
     scene = loads_scene(HANGING_SHEET)
     sim = build_simulator(scene)
