@@ -11,8 +11,8 @@ conform/knot_insertion.py): the dance at 65K DOFs is timed without 60 sewing ste
 65K DOFs first. The hand-over comes SETTLE before the pre-roll ends, and those steps at
 the fine span are reported apart: the finer contact mesh lies closer than the coarse one
 did (the dress at 8 mm: closest contact 2.5 um, 0.14 mm at 32 mm), and resolving that
-took 77-100 Newton iterations whether or not the body moved, a cost of the hand-over
-rather than of the dance."""
+took 77-112 Newton iterations whether or not the body moved, a cost of the hand-over
+rather than of the dance (so those steps may take SETTLE_ITERATIONS)."""
 
 from __future__ import annotations
 
@@ -61,6 +61,14 @@ DEFAULT_STEPS = 40
 # outlasts 0.04 s: with that, the dress at 8 mm took 23-37 Newton iterations in the first
 # five dance steps and 13-20 after.
 SETTLE = 0.1
+# Newton's iteration cap in those settling steps (the scene's own comes back for the
+# dance). The finer contact mesh starts nearer its pairs than the coarse one did: the
+# dress refined from 32 to 8 mm starts 3.5e-7 m from its nearest pair, and its first
+# step converged in 112 iterations given 300; at the scene's 100 that step and each of
+# its splits stopped 0.015-0.04 m/s short of the 0.01 m/s tolerance, and the benchmark
+# failed at its hand-over (stop 87). The tolerance stays; only the transient may take
+# longer.
+SETTLE_ITERATIONS = 300
 # Contact near the seams while sewing at the coarse span (refine > 0). Merged, the dress at
 # 32 mm with one contact vertex per control point blocks the seam pairs around two
 # junctions (panels 2-5 meeting at panel 4's dart): a 32 mm triangle lies within 1-2 mm of
@@ -127,7 +135,11 @@ def run(resolutions, steps=None, quadrature=None, progress=None, case: str = "po
                 start = time.perf_counter()
                 sim = _refined(sim, sc, levels, Path(placed))
                 build += time.perf_counter() - start
+            cap = sim.model.newton.max_iterations
+            if levels:
+                sim.model.newton.max_iterations = max(cap, SETTLE_ITERATIONS)
             advance(sim, fine, settle)
+            sim.model.newton.max_iterations = cap
             advance(sim, steps or DEFAULT_STEPS, dance)
             settled = step_summary(settle)
             cases.append({

@@ -72,11 +72,11 @@ def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
         sc = scene(*args)
         return dataclasses.replace(sc, time=dataclasses.replace(sc.time, preroll=0.03))
 
-    starts = []  # (time, DOFs) at each step the benchmark asks for
+    starts = []  # (time, DOFs, Newton's cap) at each step the benchmark asks for
     step = bench.step_with_recovery
 
     def recorded(sim, **kwargs):
-        starts.append((round(sim.t, 9), sim.n_dofs))
+        starts.append((round(sim.t, 9), sim.n_dofs, sim.model.newton.max_iterations))
         return step(sim, **kwargs)
 
     monkeypatch.setattr(bench, "case_scene", short_preroll)
@@ -84,10 +84,12 @@ def test_bench_garment_refines_before_the_preroll_ends(monkeypatch):
     monkeypatch.setattr(bench, "step_with_recovery", recorded)
     (case,) = bench.run((20,), steps=1, refine=1)
     # One sewing step at the coarse span, two settling steps at the fine one from
-    # t = 0.01 s, then the dance from the end of the pre-roll. A step that recovery splits
+    # t = 0.01 s (the hand-over's transient may take SETTLE_ITERATIONS), then the dance
+    # from the end of the pre-roll at the scene's cap. A step that recovery splits
     # reports each half, so the settling reports at least its two steps.
     coarse, fine = case["sewn_at_dofs"], case["dofs"]
-    assert starts == [(0.0, coarse), (0.01, fine), (0.02, fine), (0.03, fine)]
+    cap, settle = 100, bench.SETTLE_ITERATIONS
+    assert starts == [(0.0, coarse, cap), (0.01, fine, settle), (0.02, fine, settle), (0.03, fine, cap)]
     assert (case["sew_steps"], case["steps"]) == (1, 1) and case["settle_steps"] >= 2
     assert case["sewn_at_dofs"] < case["dofs"] and case["sewn_at_span_mm"] == 40
     assert case["settle_seconds_per_step"] > 0.0 and len(case["settle_iterations"]) == case["settle_steps"]
