@@ -45,7 +45,7 @@ from .grading import SHORT, Request, grade
 from .lift import lift
 from .mips import STALL_WINDOW, BoundaryFit, MipsOptions, det, rule_points
 from .mips import refine as mips_refine
-from .pleats import fold_panels, fold_span, pleat_faces
+from .pleats import TUCK_SEAM_SPAN, fold_panels, fold_span, has_tucks, pleat_faces
 from .quality import folded, lift_strain, polyline_distance, report
 from .seams import below_resolution, map_seam, seam_hints, short_seams
 from .split import (PINCH, SPLIT_IMBALANCE, TRIM_WIDTH, darts_of, imbalance, necks_of, notches_of, split_panel,
@@ -62,7 +62,9 @@ class ConformOptions:
     "auto" (cut a panel at its darts when one patch would be badly out of balance),
     "darts" (always cut at darts) or "never" (conform/split.py); seam_span: the knot span
     wanted at seams shorter than grading.SHORT knot spans (tucks, dart legs), metres - the
-    net is graded towards them (conform/grading.py); None keeps it uniform. fold_pleats:
+    net is graded towards them (conform/grading.py); None, or one not below knot_span,
+    keeps it uniform; "auto" (conform_all): pleats.TUCK_SEAM_SPAN for a garment with
+    tucks, else uniform (a single panel: uniform). fold_pleats:
     fold the panels' tucks and knife pleats into their 3D placement, so sewing starts with
     the layers in order (conform/pleats.py; panels without tucks are untouched)."""
 
@@ -75,13 +77,25 @@ class ConformOptions:
     lam: float = LAMBDA
     mips: MipsOptions = field(default_factory=MipsOptions)
     split: str = "auto"
-    seam_span: float | None = None
+    seam_span: float | str | None = "auto"
     fold_pleats: bool = True
 
     @property
     def finest_span(self) -> float:
-        """The smallest knot span asked for, metres: what input curves are sampled for."""
-        return min(self.knot_span, self.seam_span or self.knot_span)
+        """The smallest knot span asked for, metres: what input curves are sampled for
+        ("auto": the knot span; only panel meshes have had tucks, and they are not sampled)."""
+        graded = self.seam_span if isinstance(self.seam_span, float | int) else None
+        return min(self.knot_span, graded or self.knot_span)
+
+    def for_garment(self, panels: list[Panel], seams: list[PanelSeam]) -> "ConformOptions":
+        """These options with seam_span a number below the knot span, or None (uniform):
+        "auto" becomes pleats.TUCK_SEAM_SPAN where a panel has tucks."""
+        span = self.seam_span
+        if span == "auto":
+            span = TUCK_SEAM_SPAN if has_tucks(panels, seams) else None
+        if span is not None and (self.control_points is not None or span >= self.knot_span):
+            span = None
+        return dataclasses.replace(self, seam_span=span)
 
 
 @dataclass
@@ -346,6 +360,8 @@ def conform_panel(panel: Panel, options: ConformOptions | None = None, hints=(),
     h_target = options.knot_span if options.control_points is None else float(
         np.mean(sides.lengths) / max(np.mean([n, m]) - 2, 1))
     grading = None
+    if options.seam_span == "auto":  # no garment to judge by: uniform
+        options = dataclasses.replace(options, seam_span=None)
     requests = [] if options.seam_span is None or options.control_points is not None else seam_requests(
         outline, sides, short_seams, options.finest_span)
     if requests:
@@ -568,6 +584,7 @@ def conform_all(panels: list[Panel], seams: list[PanelSeam], options: ConformOpt
     report or None, error or None) after each panel or piece."""
     options = options or ConformOptions()
     check_request(panels, options)
+    options = options.for_garment(panels, seams)
     corners = corners or {}
     names = {p.name for p in panels}
     unknown = {c for c in corners if c not in names and c.rpartition(".")[0] not in names}

@@ -44,6 +44,12 @@ PLEAT_DEPTH = 1.5
 # bodice's 8 tucks folded) every seam closed; at 4.8 and 4.1 mm (all folded) the dart
 # seam43 next to panel13's 6.2 mm pleat stayed 10-14 mm open (docs/findings.md, "Folded pleats").
 PLEAT_REFINE = 1.6
+# The knot span a garment with tucks is graded to at its short seams (tucks, dart legs)
+# when no seam span is asked for: a quadratic net folds centimetres of cloth only over
+# several spans. dress_knife's widest seam after sewing was 12.2 mm at uniform 40 mm spans,
+# 2.8 mm at 20 mm and 0.09 mm at 8 mm (docs/findings.md, "Garments"). Garments without
+# tucks (every GarmentCode design read so far) keep uniform nets.
+TUCK_SEAM_SPAN = 0.008
 # Each fold turns over this many knot spans of cloth: sharper folds the net cannot follow
 # without straining the placement.
 TURN_WIDTH = 2.0
@@ -378,6 +384,11 @@ def fold_span(panel: str, seams: list[PanelSeam], span: float) -> float:
     shallowest = min(_depth(t) for t in found[2])
     fine = np.floor(1e4 * shallowest / PLEAT_DEPTH) / 1e4  # whole 0.1 mm, so it passes plan_fold
     return float(np.clip(fine, span / PLEAT_REFINE, span))
+
+
+def has_tucks(panels: list[Panel], seams: list[PanelSeam]) -> bool:
+    """Whether any panel has a tuck or knife pleat (find_tucks)."""
+    return any(find_tucks(p.name, seams) is not None for p in panels)
 
 
 def fold_panels(panels: list[Panel], seams: list[PanelSeam], span: float,

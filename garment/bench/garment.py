@@ -86,9 +86,10 @@ def case_scene(case: str, span_m: float, quadrature: str | None = None, folder: 
     if case not in CASES:
         raise SystemExit(f"garment bench garment: --case must be one of {', '.join(CASES)}, not {case!r}")
     scene_name, contact, preset, time_changes = CASES[case]
-    # Uniform nets: the resolution is the knot span everywhere (the scene's seam_span_mm
-    # grading would put 2 mm spans at the tucks after a refinement from 32 mm).
-    uniform = {"knot_span_mm": round(span_m * 1e3, 9), "seam_span_mm": None}
+    # Uniform nets: the resolution is the knot span everywhere (a seam span at the knot
+    # span; graded tucks would get 2 mm spans after a refinement from 32 mm).
+    span_mm = round(span_m * 1e3, 9)
+    uniform = {"knot_span_mm": span_mm, "seam_span_mm": span_mm}
     folder = folder or Path(tempfile.gettempdir()) / "garment-bench" / scene_name  # made only if dressed
     sc = scene_for_run(SCENES / f"{scene_name}.toml", folder, uniform)
     garments = []

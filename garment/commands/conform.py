@@ -115,7 +115,7 @@ def run(args) -> int:
     # Millimetres on the command line, checked as the scene's knot_span_mm; metres after.
     span = scene_option("--knot-span", args.knot_span if args.knot_span is not None else 20.0, GarmentSpec,
                         "knot_span_mm")
-    seam_span = None if args.seam_span is None else scene_option("--seam-span", args.seam_span, GarmentSpec,
+    seam_span = "auto" if args.seam_span is None else scene_option("--seam-span", args.seam_span, GarmentSpec,
                                                                    "seam_span_mm")
     tolerance = None if args.tolerance is None else 1e-3 * number_option("--tolerance", args.tolerance, gt=0)
     number_option("--refine", args.refine, ge=0, le=6)
@@ -296,7 +296,8 @@ def register(sub) -> None:
     g.add_argument("--control-points", metavar="NxM", help="control points along u and v for every panel")
     c.add_argument("--seam-span", type=float, metavar="MM",
                    help="grade the control nets towards this knot span at seams shorter than two knot spans "
-                        "(tucks, dart legs; default: uniform nets)")
+                        "(tucks, dart legs; default: 8 mm on a garment with tucks, else uniform nets; "
+                        "the knot span or more: uniform)")
     c.add_argument("--fold-pleats", action=argparse.BooleanOptionalAction, default=True,
                    help="fold tucks and knife pleats into the panels' 3D placement, so sewing starts with the "
                         "layers in order (default; --no-fold-pleats leaves them flat)")

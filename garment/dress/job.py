@@ -67,6 +67,9 @@ class DressOptions:
     bounds as a scene key does (garment/scene/schema.py), checked on `--set`."""
 
     knot_span_mm: float = key(40.0, doc="B-spline knot span in mm", gt=0)
+    seam_span_mm: float = key(0.0, doc="knot span at short seams (tucks, dart legs) in mm; 0: 8 mm on a garment "
+                                       "with tucks, else uniform nets (conform/pleats.py, TUCK_SEAM_SPAN); the knot "
+                                       "span or more: uniform", ge=0)
     material: str = key("cotton", doc="material preset")
     seam_stiffness: float = key(1e7, doc="seam stiffness per metre of seam", unit="N/m^2", gt=0)
     inset: float = key(0.05, doc="how far the body starts inside its surface (capped at 0.4 x thickness)",
@@ -197,7 +200,8 @@ def place_garment(pattern: Path, frame: BodyFrame, body_V, body_F, options: Dres
     from ..io.obstacles import ObstacleGeometry
     from ..io.patchfile import save_patchset
 
-    conform_options = ConformOptions(knot_span=options.knot_span_mm * 1e-3)
+    conform_options = ConformOptions(knot_span=options.knot_span_mm * 1e-3,
+                                     seam_span=options.seam_span_mm * 1e-3 or "auto")
     panels, seams = read_pattern(pattern, conform_options.finest_span)
     ps = conform_all(panels, seams, conform_options)
     # conform_all cuts a panel whose net folds over into pieces; one that still folds (no

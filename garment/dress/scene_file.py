@@ -6,7 +6,7 @@ choices; an animated body then moves as the scene says.
 
 Such a scene gives none of the keys that place a garment by hand (PLACEMENT: the body's
 `inset`, `translate` and `raise_arms`, the pre-roll and the sewing mode). It may still
-choose the material preset, knot span, seam stiffness, contact distance and friction,
+choose the material preset, knot spans, seam stiffness, contact distance and friction,
 time step and length of the run, the body's units, up axis and frame rate, and the
 outputs (CHOICES). The garment is placed on the body's first pose; an animated body holds
 it while the seams close and the body grows back (the pre-roll, DressOptions.sew_time),
@@ -32,7 +32,8 @@ PLACEMENT = {"obstacle": ("inset", "translate", "raise_arms"), "time": ("preroll
 CHOICES = {
     "scene": {"name": None, "description": None},
     "material": {"preset": "material"},
-    "garment": {"name": None, "source": None, "knot_span_mm": "knot_span_mm", "seam_stiffness": "seam_stiffness"},
+    "garment": {"name": None, "source": None, "knot_span_mm": "knot_span_mm", "seam_span_mm": "seam_span_mm",
+                "seam_stiffness": "seam_stiffness"},
     "obstacle": {"name": None, "mesh": None, "animation": None, "fps": None, "up": None, "scale": None},
     "contact": {"dhat": "dhat", "mu": "mu", "eps_v": "eps_v", "kappa": None},
     "time": {"dt": "dt", "steps_per_frame": "steps_per_frame", "frames": None},

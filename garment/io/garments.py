@@ -29,7 +29,8 @@ def load_garment(spec) -> PatchSet:
     if spec.source.suffix.lower() == ".json" and _is_patch_file(spec.source):
         ps = load_patchset(spec.source)
     else:
-        options = ConformOptions(knot_span=spec.knot_span, seam_span=spec.seam_span, fold_pleats=spec.fold_pleats)
+        seam_span = "auto" if spec.seam_span is None else spec.seam_span
+        options = ConformOptions(knot_span=spec.knot_span, seam_span=seam_span, fold_pleats=spec.fold_pleats)
         panels, seams = read_pattern(spec.source, options.finest_span)
         if spec.placement is not None:
             place_panels(panels, spec.placement)

@@ -335,8 +335,8 @@ class PlacementSpec:
 class GarmentSpec:
     """A garment: the patches and seams of a patch file (`garment conform` output), or a
     panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m; the scene key
-    is knot_span_mm), graded towards `seam_span` (m) at short seams when given
-    (conform/grading.py), its tucks and knife pleats folded into the placement with
+    is knot_span_mm), graded towards `seam_span` (m) at short seams (conform/grading.py;
+    by default 8 mm on a garment with tucks, else uniform), its tucks and knife pleats folded into the placement with
     `fold_pleats` (conform/pleats.py; on by default, a no-op without tucks); with
     `pleat_wait` (also on), seams sewn onto a folded pleat's face or across its layers pull
     only once its tucks have nearly closed (SewingSpec.pleat_wait_gap). Seams are
@@ -350,7 +350,8 @@ class GarmentSpec:
                           plausible=(0.5, 1000.0))
     seam_span: float | None = key(None, doc="knot span graded towards at short seams (conform/grading.py)",
                                   unit="mm", gt=0, plausible=(0.1, 1000.0),
-                                  default_text="none: knot_span_mm throughout")
+                                  default_text="8 mm on a garment with tucks (conform/pleats.py, TUCK_SEAM_SPAN), "
+                                               "else knot_span_mm throughout; knot_span_mm or more: uniform")
     fold_pleats: bool = key(True, doc="tucks and knife pleats start folded (conform/pleats.py); false leaves "
                                       "them flat")
     pleat_wait: bool = key(True, doc="seams sewn onto a folded pleat's face, or across its layers (a dart), pull "
@@ -384,8 +385,9 @@ class SewingSpec:
     pleat_wait_gap: float = key(3e-3, unit="mm", gt=0,
                                 doc="a seam sewn onto a folded pleat's face ([[garment]] pleat_wait) pulls once the "
                                     "pleat's tucks are within this gap, or from pleat_wait_end on")
-    pleat_wait_end: float = key(0.6, unit="s", ge=0,
-                                doc="a seam waiting for a pleat's tucks (pleat_wait_gap_mm) pulls from this time on")
+    pleat_wait_end: float | None = key(None, unit="s", ge=0, default_text="the end of [time] preroll",
+                                       doc="a seam waiting for a pleat's tucks (pleat_wait_gap_mm) pulls from this "
+                                           "time on")
 
 
 @declare(

@@ -34,7 +34,8 @@ def check_targets(ps, reduced_area_pct=0.1, slow_ok=()):
         assert abs(q["area_error_gauss2_pct"]) < 0.1, p.name  # the patch's exact area
         if p.name not in slow_ok:
             assert abs(q["area_error_reduced_pct"]) < reduced_area_pct, p.name
-        assert q["lift_max_strain"] < 1e-3, p.name
+        # A placement with folded pleats bends over a few knot spans (conform/pleats.py).
+        assert q["lift_max_strain"] < (0.1 if q.get("pleat_folds") else 1e-3), p.name
 
 
 @needs_assets
@@ -77,6 +78,7 @@ def test_some_dress_knife_panels_meet_the_targets():
     chosen = [p for p in panels if p.name in ("panel3", "panel6", "panel10")]
     ps = conform_all(chosen, seams, ConformOptions(knot_span=0.02))
     check_targets(ps)
+    assert ps.quality["panel6"]["pleat_folds"] > 0  # graded at its tucks by default, so they fold
     assert {s.patch_a for s in ps.seams} | {s.patch_b for s in ps.seams} <= {"panel3", "panel6", "panel10"}
     assert ps.seams  # panel3 - panel10 are sewn
 

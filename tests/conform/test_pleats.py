@@ -10,6 +10,7 @@ from conform import ConformOptions
 from conform.pipeline import conform_all
 from garment.cli import main
 from sim.errors import InputError
+from garment.io.garments import read_pattern
 from garment.io.panels import read_panels
 from garment.io.patchfile import load_patchset
 from sim.patches import Panel
@@ -206,6 +207,10 @@ def test_the_bundled_dress_scene_folds_its_pleats_by_default():
     assert "fold_pleats" not in text and "pleat_wait" not in text  # no knob: the defaults
     assert [g.fold_pleats for g in scene.garments] == [True]
     assert [g.pleat_wait for g in scene.garments] == [True]
+    # Nor its grading: a garment with tucks is graded at them by default, and the body
+    # file's frame is the panels' (no translate).
+    assert "seam_span" not in text and "translate" not in text
+    assert [g.seam_span for g in scene.garments] == [None]
 
 
 def test_garment_conform_folds_pleats_unless_told_not_to(tmp_path):
@@ -218,3 +223,16 @@ def test_garment_conform_folds_pleats_unless_told_not_to(tmp_path):
     assert folded.quality["skirt"]["pleat_folds"] == 2 and "pleat_folds" not in flat.quality["skirt"]
     lift = np.abs(folded.patches[0].world[..., 1] - flat.patches[0].world[..., 1]).max()
     assert lift > 3e-3  # the skirt lifted off its plane (y = 0) at the pleat
+
+
+def test_a_garment_with_tucks_is_graded_at_its_short_seams_by_default():
+    panels, seams = read_panels(ASSETS / "garments" / "dress_knife.obj")
+    assert ConformOptions(knot_span=0.04).for_garment(panels, seams).seam_span == pleats.TUCK_SEAM_SPAN
+    # Not finer than asked, not coarser than the knot span: a seam span at the knot span
+    # or above is a uniform net, and so is one without tucks.
+    assert ConformOptions(knot_span=0.04, seam_span=0.012).for_garment(panels, seams).seam_span == 0.012
+    assert ConformOptions(knot_span=0.008).for_garment(panels, seams).seam_span is None
+    assert ConformOptions(knot_span=0.04, seam_span=0.04).for_garment(panels, seams).seam_span is None
+    shirt, shirt_seams = read_pattern(ASSETS / "garments" / "shirt_mean.json", 0.04)
+    assert not pleats.has_tucks(shirt, shirt_seams)
+    assert ConformOptions(knot_span=0.04).for_garment(shirt, shirt_seams).seam_span is None

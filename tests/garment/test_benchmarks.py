@@ -55,9 +55,10 @@ def test_bench_garment_cases_set_the_papers_hiphop_parameters():
     dress = case_scene("dress", 0.04)
     assert (case_scene("dress-band", 0.04).contact.seams, dress.contact.seams) == ("band", "merge")
     assert (dress.contact.mu, dress.contact.eps_v, dress.time.newton_extrapolate) == (0.2, 1e-2, 4)
-    # The scene grades its nets towards the tucks; the bench times uniform ones.
-    assert load_scene(SCENES / "dress_rumba.toml").garments[0].seam_span == 0.008
-    assert dress.garments[0].seam_span is None
+    # The scene's nets are graded at the tucks by default; the bench times uniform ones
+    # (a seam span at the knot span).
+    assert load_scene(SCENES / "dress_rumba.toml").garments[0].seam_span is None
+    assert dress.garments[0].seam_span == dress.garments[0].knot_span == 0.04
     with pytest.raises(SystemExit, match="dress-hiphop"):
         case_scene("hiphop", 0.04)
 
