@@ -16,7 +16,7 @@ pair that cannot merge without cloth passing through cloth is blocked, and where
 lies between its sides the samples nearest to it pull with `held_fraction` of the
 stiffness (SeamContact.to_hold). A seam sewn onto a folded
 pleat's face (a waistband), or a dart across its layers, pulls only once the pleat's tucks
-are within `pleat_wait_gap`, or from `pleat_wait_end` on: pulled earlier, the other panel
+are within `pleat_wait_gap`, or from `pleat_wait_end` (the pre-roll's end) on: pulled earlier, the other panel
 comes down into the fold and its layers hold a tuck open, or a layer is caught between
 the dart's legs (docs/findings.md, "Folded pleats"). A gathered seam (one side
 1.5x the other or more) waits the same way for the seams of the piece it is gathered onto
@@ -51,7 +51,10 @@ class SewingOptions:
     block_reach: float = 10.0  # d_hat: open pairs closer than this are tested for blocking
     held_fraction: float = 0.01  # of the stiffness, on samples next to a held blocked pair (to_hold)
     pleat_wait_gap: float = 3e-3  # m, tucks this close release a pleat face's seam
-    pleat_wait_end: float = 0.6  # s, or from this time on
+    # s, or from this time on; None: the end of the pre-roll (or of the sewing ramp), when
+    # the body is whole and the garment must hold together; with neither, only the tucks
+    # release it.
+    pleat_wait_end: float | None = None
     # Newton iterations per quasi-static sewing step: its steps are a path to the sewn
     # shape, each starting where the last stopped, so none needs to converge. Cloth pressed
     # to a shrunk body between a seam's pull and the barrier (a dress at 3e-6 m) takes
@@ -82,6 +85,14 @@ class Sewing:
             self.faces += _gather_waits(seams, self.start, self.junctions, energy.samples, C0)
         if options.ramp > 0.0:
             energy.set_scale(self.scale(dt))  # the first step's
+
+    @property
+    def wait_end(self) -> float:
+        """When a waiting seam pulls whatever its pleat's tucks (or its junction) do, s."""
+        o = self.options
+        if o.pleat_wait_end is not None:
+            return o.pleat_wait_end
+        return max(o.preroll, o.ramp) or np.inf
 
     def scale(self, t: float) -> float:
         """Fraction of the full stiffness at time t (the ramp)."""
@@ -226,7 +237,7 @@ class Sewing:
         for k, (samples, tucks) in enumerate(self.faces):
             if released[k]:
                 continue
-            if t >= o.pleat_wait_end or all(gaps[s].max(initial=0.0) <= o.pleat_wait_gap for s in tucks):
+            if t >= self.wait_end or all(gaps[s].max(initial=0.0) <= o.pleat_wait_gap for s in tucks):
                 released[k] = True
             else:
                 waiting[samples] = True

@@ -287,7 +287,7 @@ def test_module_docstring_points_at_the_reference():
 def test_sewing_defaults_and_millimetres():
     assert loads_scene(CLOTH).sewing == SewingSpec()
     assert SewingSpec() == SewingSpec(ramp_start=10.0, multiplier_step=2.0, block_reach=10.0, held_fraction=0.01,
-                                      pleat_wait_gap=3e-3, pleat_wait_end=0.6)
+                                      pleat_wait_gap=3e-3, pleat_wait_end=None)
     sewing = loads_scene(CLOTH + "[sewing]\npleat_wait_gap_mm = 5\nheld_fraction = 0\n").sewing
     assert sewing == SewingSpec(pleat_wait_gap=5e-3, held_fraction=0.0)
     assert isinstance(sewing.held_fraction, float)
