@@ -334,14 +334,15 @@ class PlacementSpec:
 @dataclass
 class GarmentSpec:
     """A garment: the patches and seams of a patch file (`garment conform` output), or a
-    panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m; the scene key
-    is knot_span_mm), graded towards `seam_span` (m) at short seams (conform/grading.py;
-    by default 8 mm on a garment with tucks, else uniform), its tucks and knife pleats folded into the placement with
-    `fold_pleats` (conform/pleats.py; on by default, a no-op without tucks); with
-    `pleat_wait` (also on), seams sewn onto a folded pleat's face or across its layers pull
-    only once its tucks have nearly closed (SewingSpec.pleat_wait_gap). Seams are
-    held by springs of `seam_stiffness` N/m per metre of seam (sim/seams/energy.py).
-    `placement` replaces the panels' 3D layout before conforming (panel OBJ sources only)."""
+    panel mesh / GarmentCode pattern conformed on the fly at `knot_span` (m; the scene
+    key is knot_span_mm), graded towards `seam_span` (m) at short seams
+    (conform/grading.py; by default 8 mm on a garment with tucks, else uniform), its
+    tucks and knife pleats folded into the placement with `fold_pleats`
+    (conform/pleats.py; on by default, a no-op without tucks); with `pleat_wait` (also
+    on), seams sewn onto a folded pleat's face or across its layers pull only once its
+    tucks have nearly closed (SewingSpec.pleat_wait_gap). Seams are held by springs of
+    `seam_stiffness` N/m per metre of seam (sim/seams/energy.py). `placement` replaces
+    the panels' 3D layout before conforming (panel OBJ sources only)."""
 
     name: str = key(doc="garment name", default_text='"garment0", "garment1", ... by position')
     source: Path = key(doc="a patch file (`garment conform` output), or a panel mesh or GarmentCode pattern "

@@ -14,16 +14,16 @@ between its sides would be pinned there.
 Once a matched contact-vertex pair is nearly closed it merges (sim/seams/contact.py); a
 pair that cannot merge without cloth passing through cloth is blocked, and where cloth
 lies between its sides the samples nearest to it pull with `held_fraction` of the
-stiffness (SeamContact.to_hold). A seam sewn onto a folded
-pleat's face (a waistband), or a dart across its layers, pulls only once the pleat's tucks
-are within `pleat_wait_gap`, or from `pleat_wait_end` (the pre-roll's end) on: pulled earlier, the other panel
-comes down into the fold and its layers hold a tuck open, or a layer is caught between
-the dart's legs (docs/findings.md, "Folded pleats"). A gathered seam (one side
-1.5x the other or more) waits the same way for the seams of the piece it is gathered onto
-that meet it at a corner (a sleeve gathered onto a cuff, for the cuff's side seam):
-pulled at once, the gathered cloth's corner hangs into the cuff's open slit and the side
-seam closes on it (`_gather_waits`). Once at full stiffness,
-seam multipliers close what a penalty leaves open (sim/seams/energy.py).
+stiffness (SeamContact.to_hold). A seam sewn onto a folded pleat's face (a waistband),
+or a dart across its layers, pulls only once the pleat's tucks are within
+`pleat_wait_gap`, or from `pleat_wait_end` (the pre-roll's end) on: pulled earlier, the
+other panel comes down into the fold and its layers hold a tuck open, or a layer is
+caught between the dart's legs (docs/findings.md, "Folded pleats"). A gathered seam (one
+side 1.5x the other or more) waits the same way for the seams of the piece it is
+gathered onto that meet it at a corner (a sleeve gathered onto a cuff, for the cuff's
+side seam): pulled at once, the gathered cloth's corner hangs into the cuff's open slit
+and the side seam closes on it (`_gather_waits`). Once at full stiffness, seam
+multipliers close what a penalty leaves open (sim/seams/energy.py).
 """
 
 from __future__ import annotations

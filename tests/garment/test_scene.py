@@ -610,8 +610,6 @@ def test_scene_error_is_a_value_error_and_pickles():
 
 
 def test_newton_extrapolate_reaches_the_solver(tmp_path):
-    from sim.simulator import Simulator
-
     scene = load_scene(write(tmp_path, CLOTH + "[time]\nnewton_extrapolate = 3\nnewton_tol = 0.02\n"
                                                  "newton_relative_tol = 0.1\n"))
     opts = build_simulator(scene).model.newton
