@@ -185,6 +185,10 @@ def run(args) -> int:
     if not quiet:
         err.print(f"wrote {out} ({len(ps.patches)} patches, {len(ps.seams)} seams)"
                   + (f", preview {args.preview}" if args.preview else ""))
+        graded = options.for_garment(panels, seams).seam_span
+        if options.seam_span == "auto" and graded is not None:  # say what the default did
+            err.print(f"the pattern has tucks: nets graded to {graded * 1e3:g} mm spans at its short seams "
+                      f"(--seam-span MM to choose, --seam-span {span * 1e3:g} for uniform nets)")
     return 1 if failed else 0
 
 

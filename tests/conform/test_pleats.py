@@ -236,3 +236,14 @@ def test_a_garment_with_tucks_is_graded_at_its_short_seams_by_default():
     shirt, shirt_seams = read_pattern(ASSETS / "garments" / "shirt_mean.json", 0.04)
     assert not pleats.has_tucks(shirt, shirt_seams)
     assert ConformOptions(knot_span=0.04).for_garment(shirt, shirt_seams).seam_span is None
+
+
+def test_garment_conform_says_it_graded_a_pleated_pattern(tmp_path, capsys):
+    source = pleated(tmp_path / "pleat.obj")
+    assert main(["conform", str(source), "-o", str(tmp_path / "auto"), "--knot-span", "40"]) == 0
+    assert "nets graded to 8 mm spans at its short seams" in " ".join(capsys.readouterr().err.split())
+    assert main(["conform", str(source), "-o", str(tmp_path / "uniform"), "--knot-span", "40",
+                 "--seam-span", "40"]) == 0
+    assert "graded" not in capsys.readouterr().err
+    auto, uniform = (load_patchset(tmp_path / d / "patches.json") for d in ("auto", "uniform"))
+    assert auto.patches[0].rest.size > uniform.patches[0].rest.size  # finer at the tucks
