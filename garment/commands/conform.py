@@ -136,6 +136,7 @@ def run(args) -> int:
         panels = [p for p in panels if p.name in wanted]
     corners = parse_corners(args.corners)
     check_request(panels, options)  # memory, before the output folder and the work
+    options = options.for_garment(panels, seams)  # the seam span: "auto" decided once, here
     created = not out_dir.exists()
     try:  # fail before the work, not after it
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -185,9 +186,8 @@ def run(args) -> int:
     if not quiet:
         err.print(f"wrote {out} ({len(ps.patches)} patches, {len(ps.seams)} seams)"
                   + (f", preview {args.preview}" if args.preview else ""))
-        graded = options.for_garment(panels, seams).seam_span
-        if options.seam_span == "auto" and graded is not None:  # say what the default did
-            err.print(f"the pattern has tucks: nets graded to {graded * 1e3:g} mm spans at its short seams "
+        if args.seam_span is None and options.seam_span is not None:  # say what the default did
+            err.print(f"the pattern has tucks: nets graded to {options.seam_span * 1e3:g} mm spans at its short seams "
                       f"(--seam-span MM to choose, --seam-span {span * 1e3:g} for uniform nets)")
     return 1 if failed else 0
 
