@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import scipy.sparse as sp
 
-from sim.seams.sewing import _gather_waits, _junctions
+from sim.seams.sewing import Sewing, SewingOptions, _gather_waits, _junctions
 from sim.seams.spec import SeamSpec
 
 
@@ -83,3 +83,13 @@ def test_seam_ends_a_dropped_stitch_apart_meet_at_a_corner():
     assert [(list(s), w) for s, w in _gather_waits(seams, start, groups, samples, C0)] == [([0, 1, 2], [slice(3, 6)])]
     sides, samples, C0 = laid_out(5e-3)
     assert _junctions(seams, start, sides) == []
+
+
+def test_a_waiting_seam_pulls_at_the_latest_when_the_preroll_ends():
+    def end(**options):
+        return Sewing.wait_end.fget(SimpleNamespace(options=SewingOptions(**options)))
+
+    assert end(ramp=0.3, preroll=0.6) == 0.6  # the pre-roll's end, not the ramp's
+    assert end(ramp=0.3) == 0.3  # a ramp without a pre-roll
+    assert end(ramp=0.3, preroll=0.6, pleat_wait_end=0.4) == 0.4  # as the scene says
+    assert end() == np.inf  # neither: only the tucks (or the junction) release it
